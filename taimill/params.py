@@ -1,0 +1,444 @@
+"""Fixed parameters of a run: frozen dataclasses in SI units, loaded from TOML and
+validated before any kernel runs (SPEC §7, §9). Files use mm and rpm where the thesis
+does, with the unit in the key name; everything here is SI (m, kg, s, rad/s).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from taimill.errors import ConfigError
+from taimill.physics import laws_np
+
+ROOT = Path(__file__).resolve().parent.parent
+MATERIALS_FILE = Path(__file__).resolve().parent / "data" / "materials.toml"
+JARS_DIR = ROOT / "jars"
+RPM = 2.0 * math.pi / 60.0
+GRAVITY = 9.81
+
+
+@dataclass(frozen=True)
+class Material:
+    name: str
+    density: float  #: kg/m³
+    youngs_modulus: float  #: Pa
+    poisson: float  #: -
+
+
+@dataclass(frozen=True)
+class Friction:
+    """Regularised Coulomb friction of thesis eq 3.7."""
+
+    name: str
+    mu_s: float  #: static coefficient
+    mu_d: float  #: dynamic coefficient
+    v_s: float  #: m/s, μ reaches μ_s
+    v_d: float  #: m/s, μ has eased to μ_d
+
+
+@dataclass(frozen=True)
+class NormalLaw:
+    """F = max(0, k uⁿ + c g(u) u̇) for one contact type (see laws_np)."""
+
+    law: str
+    k: float  #: N/m^n
+    n: float  #: -
+    c: float  #: damping, unit depends on the law (N·s/m for adams-impact)
+    d: float  #: m, full-damping penetration (adams-impact)
+    m_eff: float  #: kg, effective mass of the contact type
+    e: float  #: nominal restitution (at u_ref for speed-dependent laws)
+    u_ref: float  #: m/s
+
+    @property
+    def law_id(self) -> int:
+        return laws_np.LAWS[self.law]
+
+
+@dataclass(frozen=True)
+class Jar:
+    """A 2-D profile extruded between floor (z = 0) and lid (z = height)."""
+
+    name: str
+    source: str
+    height: float  #: m
+    wall_material: str
+    primitives: tuple  #: ((type, {param: SI value}), ...); interior = intersection
+    description: str = ""
+
+    @property
+    def radius(self) -> float:
+        """Radius of the circle primitive (m): the bounding radius of the profile."""
+        return max(p["radius"] for t, p in self.primitives if t == "circle")
+
+    @property
+    def area(self) -> float:
+        """Cross-section area (m²)."""
+        return math.pi * self.radius**2
+
+    @property
+    def volume(self) -> float:
+        return self.area * self.height
+
+
+@dataclass(frozen=True)
+class Balls:
+    count: int
+    material: Material
+    radius: float  #: m
+
+    @property
+    def mass(self) -> float:
+        return self.material.density * 4.0 / 3.0 * math.pi * self.radius**3
+
+    @property
+    def inertia(self) -> float:
+        """Moment of inertia of a solid sphere, 2/5 m r², kg·m²."""
+        return 0.4 * self.mass * self.radius**2
+
+
+@dataclass(frozen=True)
+class Preset:
+    source: str
+    jar: Jar
+    balls: Balls
+    pair: str
+    friction: Friction
+    ball_ball: NormalLaw
+    ball_wall: NormalLaw
+    plate_omega: float  #: rad/s, Ω
+    jar_spin: float  #: rad/s, absolute jar spin w = K Ω (= ω + Ω)
+    plate_radius: float  #: m, R_p
+    duration: float  #: s
+    analysis_start: float  #: s
+    dt: float  #: s (resolved: auto or given)
+    dt_auto: bool
+    seed: int
+    trajectory_rate: float  #: Hz
+    ramp_time: float = 1.0  #: s, start-up ramp of Ω and w
+    gravity: float = GRAVITY  #: m/s²
+    initial_positions: np.ndarray | None = field(default=None, compare=False, repr=False)
+
+    @property
+    def ratio(self) -> float:
+        """K = ω/Ω + 1 = w/Ω (SPEC §2)."""
+        return self.jar_spin / self.plate_omega if self.plate_omega else math.nan
+
+    def as_dict(self) -> dict:
+        """Resolved configuration as plain JSON-able data (for stores and summaries)."""
+        d = dataclasses.asdict(self)
+        d["initial_positions"] = None if self.initial_positions is None else self.initial_positions.tolist()
+        d["ratio"] = self.ratio
+        d["plate_rpm"] = self.plate_omega / RPM
+        d["jar_rpm"] = (self.jar_spin - self.plate_omega) / RPM
+        return d
+
+
+# ------------------------------------------------------------------ checking
+class _Table:
+    """A TOML table being read: remembers the file and key path for error messages,
+    and reports keys nobody asked for (typos must not pass silently)."""
+
+    def __init__(self, data: dict, source: str, prefix: str = ""):
+        self.data, self.source, self.prefix, self.used = data, source, prefix, set()
+
+    def key(self, k):
+        return f"{self.prefix}{k}"
+
+    def has(self, k):
+        return k in self.data
+
+    def get(self, k, default=..., *, kind=float, lo=None, hi=None, lo_open=False, allowed=None):
+        self.used.add(k)
+        if k not in self.data:
+            if default is ...:
+                raise ConfigError(self.source, self.key(k), None, "missing (required key)")
+            return default
+        v = self.data[k]
+        if allowed is not None:
+            if v not in allowed:
+                raise ConfigError(self.source, self.key(k), v, f"must be one of {', '.join(map(str, allowed))}")
+            return v
+        if kind is str:
+            if not isinstance(v, str):
+                raise ConfigError(self.source, self.key(k), v, "must be a string")
+            return v
+        if kind is int and (isinstance(v, bool) or not isinstance(v, int)):
+            raise ConfigError(self.source, self.key(k), v, "must be an integer")
+        if kind is float and (isinstance(v, bool) or not isinstance(v, (int, float))):
+            raise ConfigError(self.source, self.key(k), v, "must be a number")
+        if isinstance(v, float) and not math.isfinite(v):
+            raise ConfigError(self.source, self.key(k), v, "must be finite")
+        bad_lo = lo is not None and (v <= lo if lo_open else v < lo)
+        if bad_lo or (hi is not None and v > hi):
+            lo_s = "-inf" if lo is None else f"{lo:g}"
+            hi_s = "inf" if hi is None else f"{hi:g}"
+            raise ConfigError(self.source, self.key(k), v, f"allowed range {'(' if lo_open else '['}{lo_s}, {hi_s}]")
+        return kind(v)
+
+    def table(self, k, required=True):
+        self.used.add(k)
+        v = self.data.get(k)
+        if v is None and not required:
+            return None
+        if not isinstance(v, dict):
+            raise ConfigError(self.source, self.key(k), v, "must be a table")
+        return _Table(v, self.source, f"{self.prefix}{k}.")
+
+    def done(self):
+        extra = sorted(set(self.data) - self.used)
+        if extra:
+            raise ConfigError(self.source, self.key(extra[0]), self.data[extra[0]], "unknown key")
+
+
+def _read_toml(path: Path, what: str) -> dict:
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except FileNotFoundError:
+        raise ConfigError(path, what, str(path), "file not found") from None
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError(path, what, str(path), f"not valid TOML ({err})") from None
+
+
+# ------------------------------------------------------------------ materials
+def _materials_db():
+    return _read_toml(MATERIALS_FILE, "materials")
+
+
+def load_material(name: str, source="material") -> Material:
+    db = _materials_db()["material"]
+    if name not in db:
+        raise ConfigError(source, "material", name, f"must be one of {', '.join(db)}")
+    t = _Table(db[name], MATERIALS_FILE, f"material.{name}.")
+    m = Material(
+        name,
+        t.get("density_kg_m3", lo=0, lo_open=True, hi=30000),
+        t.get("youngs_modulus_gpa", lo=0, lo_open=True, hi=2000) * 1e9,
+        t.get("poisson", lo=-1, lo_open=True, hi=0.5),
+    )
+    t.done()
+    return m
+
+
+def pair_names() -> list[str]:
+    return list(_materials_db()["pair"])
+
+
+def load_friction(name: str, source, key="pair") -> tuple[Friction, str]:
+    db = _materials_db()
+    if name not in db["pair"]:
+        raise ConfigError(source, key, name, f"must be one of {', '.join(db['pair'])}")
+    t = _Table(db["pair"][name], MATERIALS_FILE, f"pair.{name}.")
+    contact = t.get("contact", kind=str)
+    mu_s = t.get("mu_s", lo=0, hi=10)
+    mu_d = t.get("mu_d", lo=0, hi=mu_s)
+    v_s = t.get("v_s_mm_s", lo=0, lo_open=True, hi=1e4) * 1e-3
+    v_d = t.get("v_d_mm_s", lo=v_s * 1e3, lo_open=True, hi=1e5) * 1e-3
+    t.done()
+    return Friction(name, mu_s, mu_d, v_s, v_d), contact
+
+
+# ------------------------------------------------------------------ jars
+PRIMITIVES = {"circle": ("radius_mm",)}
+
+
+def resolve_jar_path(name: str, base: Path | None = None) -> Path:
+    p = Path(name)
+    if p.suffix == ".toml":
+        return p if p.is_absolute() or base is None else (base / p)
+    return JARS_DIR / f"{name}.toml"
+
+
+def jar_names() -> list[str]:
+    return sorted(p.stem for p in JARS_DIR.glob("*.toml"))
+
+
+def load_jar(name: str, source="preset", base: Path | None = None) -> Jar:
+    path = resolve_jar_path(name, base)
+    if not path.exists():
+        raise ConfigError(source, "jar", name, f"no jar file {path}; known jars: {', '.join(jar_names())}")
+    t = _Table(_read_toml(path, "jar"), path)
+    height = t.get("height_mm", lo=0, lo_open=True, hi=1000) * 1e-3
+    wall = t.get("wall_material", kind=str)
+    desc = t.get("description", "", kind=str)
+    t.used.add("profile")
+    raw = t.data.get("profile")
+    if not isinstance(raw, list) or not raw:
+        raise ConfigError(path, "profile", raw, "must be a non-empty array of [[profile]] tables")
+    prims = []
+    for i, item in enumerate(raw):
+        p = _Table(item, path, f"profile[{i}].")
+        kind = p.get("type", kind=str, allowed=tuple(PRIMITIVES))
+        values = {k.removesuffix("_mm"): p.get(k, lo=0, lo_open=True, hi=1000) * 1e-3 for k in PRIMITIVES[kind]}
+        p.done()
+        prims.append((kind, values))
+    if not any(k == "circle" for k, _ in prims):
+        raise ConfigError(path, "profile", raw, "needs one circle primitive (the jar's curved wall)")
+    t.done()
+    load_material(wall, path)
+    return Jar(path.stem, str(path), height, wall, tuple(prims), desc)
+
+
+# ------------------------------------------------------------------ contact laws
+def _normal_law(t: _Table, law: str, k, m_eff) -> NormalLaw:
+    c_max = t.get("c_max_Ns_per_mm", lo=0, hi=1e6) * 1e3  # N·s/mm → N·s/m (SPEC §3 trap)
+    d = t.get("d_mm", lo=0, lo_open=True, hi=100) * 1e-3
+    e = t.get("e", lo=0, lo_open=True, hi=1)
+    u_ref = t.get("u_ref_mm_s", lo=0, lo_open=True, hi=1e6) * 1e-3
+    t.done()
+    law_id = laws_np.LAWS[law]
+    if law_id == 0:
+        return NormalLaw(law, k, 1.5, c_max, d, m_eff, e, u_ref)
+    if not e < 1.0:
+        raise ConfigError(t.source, t.key("e"), e, f"law {law} needs a restitution in (0, 1)")
+    n = 1.0 if law == "kelvin-voigt" else 1.5
+    if n == 1.0:
+        k = _kelvin_voigt_k(t, k, m_eff, u_ref)
+    c = laws_np.calibrate_damping(law_id, e, k, n, m_eff, u_ref, d)
+    return NormalLaw(law, k, n, c, d, m_eff, e, u_ref)
+
+
+def _kelvin_voigt_k(t, k_hertz, m_eff, u_ref):
+    """Linear stiffness with the same peak overlap as Hertz at u_ref (equal energy)."""
+    u_max = (2.5 * m_eff * u_ref**2 / (2.0 * k_hertz)) ** 0.4
+    return m_eff * u_ref**2 / u_max**2
+
+
+def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source):
+    db = _materials_db()["contact"]
+    if contact not in db:
+        raise ConfigError(MATERIALS_FILE, "contact", contact, f"must be one of {', '.join(db)}")
+    t = _Table(db[contact], MATERIALS_FILE, f"contact.{contact}.")
+    ball_mat = t.get("ball", kind=str)
+    wall_mat = t.get("wall", kind=str)
+    law = law or t.get("law", kind=str, allowed=tuple(laws_np.LAWS))
+    t.used.add("law")
+    if ball_mat != balls.material.name:
+        raise ConfigError(source, "balls.material", balls.material.name, f"the pair's contact set '{contact}' is for {ball_mat} balls")
+    if wall_mat != jar.wall_material:
+        raise ConfigError(source, "jar", jar.name, f"wall material {jar.wall_material}; the pair's contact set '{contact}' is for {wall_mat} walls")
+    bm, wm = balls.material, load_material(wall_mat, MATERIALS_FILE)
+    r, m = balls.radius, balls.mass
+    k_bb = laws_np.hertz_stiffness(bm.youngs_modulus, bm.poisson, bm.youngs_modulus, bm.poisson, r, r)
+    k_bw = laws_np.hertz_stiffness(bm.youngs_modulus, bm.poisson, wm.youngs_modulus, wm.poisson, r)
+    bb = _normal_law(t.table("ball_ball"), law, k_bb, m / 2.0)
+    bw = _normal_law(t.table("ball_wall"), law, k_bw, m)
+    t.done()
+    return bb, bw
+
+
+# ------------------------------------------------------------------ presets
+def max_impact_speed(plate_omega, jar_spin, plate_radius, jar: Jar, gravity=GRAVITY) -> float:
+    """Upper estimate of contact speeds (m/s), for the automatic time step: the jar's
+    ground speed plus its wall speed plus a free fall across the jar."""
+    return abs(plate_omega) * plate_radius + abs(jar_spin) * jar.radius + math.sqrt(2 * gravity * 2 * jar.radius) + 0.5
+
+
+def load_preset(path, overrides: dict | None = None) -> Preset:
+    """Read and validate a preset. `overrides` maps preset keys to values given on the
+    command line (e.g. {"ratio": -3.0, "balls.count": 24}); they win over the file."""
+    path = Path(path)
+    data = _read_toml(path, "preset")
+    source = str(path)
+    for key, value in (overrides or {}).items():
+        if value is None:
+            continue
+        table, _, leaf = key.rpartition(".")
+        target = data.setdefault(table, {}) if table else data
+        target[leaf] = value
+        if key in ("ratio", "jar_rpm"):
+            data.pop("jar_rpm" if key == "ratio" else "ratio", None)
+    t = _Table(data, source)
+
+    jar = load_jar(t.get("jar", kind=str), source, path.parent)
+    bt = t.table("balls")
+    material = load_material(bt.get("material", kind=str), source)
+    balls = Balls(
+        bt.get("count", kind=int, lo=1, hi=1_000_000),
+        material,
+        bt.get("radius_mm", lo=0, lo_open=True, hi=0.5e3 * min(jar.radius, jar.height)) * 1e-3,
+    )
+    bt.done()
+    _check_fill(balls, jar, source)
+
+    pair = t.get("pair", kind=str)
+    friction, contact = load_friction(pair, source)
+    law = t.get("law", None, allowed=tuple(laws_np.LAWS))
+    ball_ball, ball_wall = _contact_laws(contact, law, balls, jar, source)
+
+    plate_omega = t.get("plate_rpm", lo=-1000, hi=1000) * RPM
+    if t.has("ratio") and t.has("jar_rpm"):
+        raise ConfigError(source, "jar_rpm", data["jar_rpm"], "give either ratio or jar_rpm, not both")
+    if t.has("jar_rpm"):
+        jar_spin = t.get("jar_rpm", lo=-3000, hi=3000) * RPM + plate_omega
+    else:
+        jar_spin = t.get("ratio", lo=-10, hi=10) * plate_omega
+    plate_radius = t.get("plate_radius_mm", 125.0, lo=0, hi=2000) * 1e-3
+
+    duration = t.get("duration", lo=0, lo_open=True, hi=36000)
+    analysis_start = t.get("analysis_start", 0.0, lo=0, hi=duration)
+    if analysis_start >= duration:
+        raise ConfigError(source, "analysis_start", analysis_start, f"must be below duration = {duration:g} s")
+    ramp_time = t.get("ramp_time", 1.0, lo=0, lo_open=True, hi=duration)
+    gravity = t.get("gravity", GRAVITY, lo=0, hi=1000)
+    seed = t.get("seed", 0, kind=int, lo=0, hi=2**63 - 1)
+
+    v_max = max_impact_speed(plate_omega, jar_spin, plate_radius, jar, gravity)
+    dt_auto = laws_np.auto_dt((ball_ball, ball_wall), v_max)
+    dt_raw = t.data.get("dt", "auto")
+    t.used.add("dt")
+    if dt_raw == "auto":
+        dt, is_auto = dt_auto, True
+    else:
+        dt_limit = dt_auto * laws_np.STEPS_PER_CONTACT / 10.0  # ≥ 10 steps per contact
+        if isinstance(dt_raw, bool) or not isinstance(dt_raw, (int, float)) or not 0 < dt_raw <= dt_limit:
+            raise ConfigError(source, "dt", dt_raw, f"'auto' or a time step in (0, {dt_limit:.3g}] s (10 steps per contact at {v_max:.1f} m/s)")
+        dt, is_auto = float(dt_raw), False
+
+    out = t.table("outputs", required=False)
+    rate = 100.0
+    if out is not None:
+        rate = out.get("trajectory_rate", 100.0, lo=0, lo_open=True, hi=min(1e5, 0.5 / dt))
+        out.done()
+    init = None
+    if t.has("initial_positions"):
+        init = load_positions(t.get("initial_positions", kind=str), path.parent, balls, jar, source)
+    t.done()
+    return Preset(
+        source, jar, balls, pair, friction, ball_ball, ball_wall, plate_omega, jar_spin, plate_radius,
+        duration, analysis_start, dt, is_auto, seed, rate, ramp_time, gravity, init,
+    )
+
+
+def _check_fill(balls: Balls, jar: Jar, source):
+    """Random loose packing reaches ~0.55; refuse fills that cannot be placed."""
+    fill = balls.count * 4.0 / 3.0 * math.pi * balls.radius**3 / jar.volume
+    if fill > 0.45:
+        raise ConfigError(source, "balls.count", balls.count, f"balls fill {fill:.0%} of the jar; at most 45% can be placed at random")
+    if 2 * balls.radius >= jar.height or balls.radius >= jar.radius:
+        raise ConfigError(source, "balls.radius_mm", balls.radius * 1e3, "balls must fit in the jar")
+
+
+def load_positions(name: str, base: Path, balls: Balls, jar: Jar, source) -> np.ndarray:
+    """Ball centres (N, 3), m, jar frame, from CSV (x,y,z per line) or NPZ (array 'positions')."""
+    p = Path(name) if Path(name).is_absolute() else base / name
+    try:
+        x = np.load(p)["positions"] if p.suffix == ".npz" else np.loadtxt(p, delimiter=",", ndmin=2)
+    except (OSError, KeyError, ValueError) as err:
+        raise ConfigError(source, "initial_positions", name, f"cannot read ({err})") from None
+    if x.shape != (balls.count, 3):
+        raise ConfigError(source, "initial_positions", name, f"shape {x.shape}; need ({balls.count}, 3) ball centres in m")
+    r = balls.radius
+    rho = np.hypot(x[:, 0], x[:, 1])
+    if (rho > jar.radius - r).any() or (x[:, 2] < r).any() or (x[:, 2] > jar.height - r).any():
+        raise ConfigError(source, "initial_positions", name, "a ball is not fully inside the jar")
+    gaps = np.linalg.norm(x[:, None] - x[None], axis=-1) + np.eye(len(x)) * 1e9
+    if (gaps < 2 * r).any():
+        raise ConfigError(source, "initial_positions", name, "two balls overlap")
+    return x

@@ -1,0 +1,202 @@
+"""Kernels and their launcher: `Engine` advances B independent mills.
+
+Two launch modes share every physics function:
+- fused: one kernel runs ≥ 10⁴ steps of every mill, the time loop inside the kernel,
+  one mill per CPU task (the loop is padded by PAD so that Taichi's ≥ 512-iteration
+  CPU tasks put different mills on different threads — NOTES.md batching trap);
+- parallel: one large mill (B = 1), one launch per phase per step, balls spread over
+  all cores. Used where the per-step work dwarfs the ≈ 30 µs launch cost.
+"""
+
+
+import numpy as np
+import taichi as ti
+
+from taimill.physics import state as S
+from taimill.physics.neighbours import rebuild_parallel, rebuild_serial
+from taimill.physics.contacts import ball_forces
+from taimill.physics.frame import drive_at, wall_velocity_ground
+from taimill.physics.integrator import integrate
+
+PAD = 512
+
+
+@ti.func
+def drive(F: ti.template(), b, t):
+    return drive_at(F.plate_ramp[b], F.jar_ramp[b], t)
+
+
+@ti.func
+def snapshot(F: ti.template(), b, t, dr):
+    """Store a frame and the energy ledger (ground-frame kinetic energy, m g z, stored
+    elastic energy, drive work, dissipation), J."""
+    k = F.n_frames[b]
+    F.frame_t[b, k] = t
+    ke, pe, el, dw, ds = 0.0, 0.0, 0.0, 0.0, 0.0
+    for i in range(F.n_balls[b]):
+        x, v, s, m = F.x[b, i], F.v[b, i], F.s[b, i], F.m[b, i]
+        F.frame_x[b, k, i] = x
+        F.frame_v[b, k, i] = v
+        F.frame_s[b, k, i] = s
+        vg = v + wall_velocity_ground(x, dr, F.plate_radius[b])
+        ke += 0.5 * m * vg.norm_sqr() + 0.5 * s.norm_sqr() / F.inv_i[b, i]
+        pe += m * F.gravity[b] * x[2]
+        el += F.elastic[b, i]
+        dw += F.drive_work[b, i]
+        ds += F.dissipated[b, i]
+    F.frame_ledger[b, k] = ti.Vector([ke, pe, el, dw, ds])
+    F.n_frames[b] = k + 1
+
+
+@ti.func
+def can_step(F: ti.template(), b, margin):
+    return (
+        F.status[b] == S.OK
+        and F.step[b] < F.target[b]
+        and F.n_events[b] + margin <= F.event_capacity
+        and F.n_frames[b] < F.frame_capacity
+    )
+
+
+@ti.func
+def step_mill(F: ti.template(), b, use_grid: ti.template()):
+    """One time step of mill b: frame, neighbour lists if stale, forces, integration."""
+    dt = F.dt[b]
+    st = F.step[b]
+    t = st * dt
+    dr = drive(F, b, t)
+    if st % F.frame_every[b] == 0:
+        snapshot(F, b, t, dr)
+    if F.rebuild[b]:
+        rebuild_serial(F, b, use_grid)
+    for i in range(F.n_balls[b]):
+        ball_forces(F, b, i, t, dr, dt)
+    for i in range(F.n_balls[b]):
+        integrate(F, b, i, dr, dt)
+    F.step[b] = st + 1
+
+
+@ti.kernel
+def advance_fused(F: ti.template(), n_steps: ti.i64, use_grid: ti.template()):
+    for task in range(F.B * PAD):
+        if task % PAD == 0:
+            b = task // PAD
+            margin = F.n_balls[b] * S.SLOTS
+            for _ in range(n_steps):
+                if not can_step(F, b, margin):
+                    break
+                step_mill(F, b, use_grid)
+
+
+# ---- parallel mode (b = 0), one launch per phase
+@ti.kernel
+def begin_step(F: ti.template()) -> ti.i32:
+    go = 0
+    ti.loop_config(serialize=True)
+    for _ in range(1):
+        if can_step(F, 0, 0):
+            go = 1
+            t = F.step[0] * F.dt[0]
+            if F.step[0] % F.frame_every[0] == 0:
+                snapshot(F, 0, t, drive(F, 0, t))
+    return go
+
+
+@ti.kernel
+def forces_parallel(F: ti.template()):
+    dt = F.dt[0]
+    st = F.step[0]
+    t = st * dt
+    dr = drive(F, 0, t)
+    for i in range(F.n_balls[0]):
+        ball_forces(F, 0, i, t, dr, dt)
+
+
+@ti.kernel
+def integrate_parallel(F: ti.template()):
+    dt = F.dt[0]
+    t = F.step[0] * dt
+    dr = drive(F, 0, t)
+    for i in range(F.n_balls[0]):
+        integrate(F, 0, i, dr, dt)
+    F.step[0] += 1
+
+
+# ---- draining the output buffers
+@ti.kernel
+def export_events(F: ti.template(), b: ti.i32, n: ti.i32, out: ti.types.ndarray()):
+    for e, c in ti.ndrange(n, S.NCOL):
+        out[e, c] = F.events[b, e][c]
+
+
+@ti.kernel
+def export_frames(F: ti.template(), b: ti.i32, n: ti.i32, nb: ti.i32, t: ti.types.ndarray(),
+                  x: ti.types.ndarray(), v: ti.types.ndarray(), s: ti.types.ndarray(), ledger: ti.types.ndarray()):
+    for k in range(n):
+        t[k] = F.frame_t[b, k]
+        for c in ti.static(range(len(S.LEDGER_FIELDS))):
+            ledger[k, c] = F.frame_ledger[b, k][c]
+        for i in range(nb):
+            for c in ti.static(range(3)):
+                x[k, i, c] = F.frame_x[b, k, i][c]
+                v[k, i, c] = F.frame_v[b, k, i][c]
+                s[k, i, c] = F.frame_s[b, k, i][c]
+
+
+class Engine:
+    """Allocates the fields of B mills × N balls and advances them.
+
+    `mode` is "fused" or "parallel" (B = 1 only); `use_grid` selects the spatial hash
+    over the all-pairs loop (both give identical contact sets; all-pairs is faster
+    for a dozen balls, see scripts/bench.py).
+    """
+
+    def __init__(self, batch, balls, *, mode="fused", use_grid=False, grid_cells=1,
+                 event_capacity=1 << 14, frame_capacity=64):
+        if mode == "parallel" and batch != 1:
+            raise ValueError("parallel mode runs one mill")
+        self.mode, self.use_grid = mode, use_grid or mode == "parallel"
+        cap = max(event_capacity, balls * S.SLOTS * (2 if mode == "fused" else 4))
+        self.F = S.Fields(batch, balls, cap, frame_capacity, grid_cells)
+
+    @property
+    def B(self):
+        return self.F.B
+
+    def advance(self, n_steps: int):
+        """Advance every unfinished mill by up to n_steps; stops early at a full buffer
+        or a fault (the caller drains and calls again)."""
+        F = self.F
+        if self.mode == "fused":
+            advance_fused(F, n_steps, self.use_grid)
+            return
+        margin = F.N * S.SLOTS
+        for _ in range(n_steps):
+            if F.n_events[0] + margin > F.event_capacity or not begin_step(F):
+                break
+            if F.rebuild[0]:
+                rebuild_parallel(F)
+            forces_parallel(F)
+            integrate_parallel(F)
+
+    def drain(self, b: int):
+        """Frames and events of mill b buffered since the last drain, as NumPy arrays;
+        resets the buffers."""
+        F = self.F
+        nb = int(F.n_balls[b])
+        ne = min(int(F.n_events[b]), F.event_capacity)
+        nf = int(F.n_frames[b])
+        ev = np.zeros((ne, S.NCOL))
+        if ne:
+            export_events(F, b, ne, ev)
+        t = np.zeros(nf)
+        x, v, s = (np.zeros((nf, nb, 3)) for _ in range(3))
+        ledger = np.zeros((nf, len(S.LEDGER_FIELDS)))
+        if nf:
+            export_frames(F, b, nf, nb, t, x, v, s, ledger)
+        overflow = int(F.n_events[b]) > F.event_capacity
+        F.n_events[b] = 0
+        F.n_frames[b] = 0
+        if overflow:
+            raise RuntimeError("event buffer overflow (a bug: the launcher keeps a margin)")
+        return {"time": t, "position": x, "velocity": v, "spin": s}, ev, ledger

@@ -1,0 +1,62 @@
+"""Contact laws as Taichi functions: pure functions of local quantities (STYLE rule 1).
+Their NumPy twins, the law table and the sources are in `laws_np.py`; the tests hold
+the two equal."""
+
+import taichi as ti
+
+
+@ti.func
+def smoothstep(s):
+    """step(s) = s²(3-2s) on [0, 1], clamped outside (MSC.Adams STEP)."""
+    s = ti.min(ti.max(s, 0.0), 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
+@ti.func
+def damping_shape(law: ti.i32, u, k, n, d, m_eff):
+    """g(u) of the law table in laws_np."""
+    g = 1.0
+    if law == 0:  # adams-impact, eqs 2.20 / 3.2
+        g = smoothstep(u / d)
+    elif law == 3:  # hunt-crossley, eq 2.19
+        g = k * ti.pow(u, n)
+    elif law == 4:  # hertz-mindlin, damping ∝ √(m_e S_n), S_n = n k u^(n-1)
+        g = ti.sqrt(m_eff * n * k) * ti.pow(u, 0.5 * (n - 1.0))
+    return g
+
+
+@ti.func
+def normal_force(law: ti.i32, u, udot, k, n, c, d, m_eff):
+    """(F, F_elastic), N: F = max(0, k uⁿ + c g(u) u̇), never attractive."""
+    f_el = k * ti.pow(u, n)
+    f = ti.max(0.0, f_el + c * damping_shape(law, u, k, n, d, m_eff) * udot)
+    return f, f_el
+
+
+@ti.func
+def elastic_energy(u, k, n):
+    """k u^(n+1)/(n+1), J."""
+    return k * ti.pow(u, n + 1.0) / (n + 1.0)
+
+
+@ti.func
+def friction_coefficient(v, mu_s, mu_d, v_s, v_d):
+    """Regularised Coulomb μ(v), thesis eq 3.7."""
+    mu = mu_d
+    if v < v_s:
+        mu = mu_s * smoothstep(v / v_s)
+    else:
+        mu = mu_s - (mu_s - mu_d) * smoothstep((v - v_s) / (v_d - v_s))
+    return mu
+
+
+@ti.func
+def friction_force(slip, f_n, mu_s, mu_d, v_s, v_d, inv_mass_t, dt):
+    """Friction force opposing `slip`; its impulse in one step never exceeds the one
+    that stops the slip (inv_mass_t = Σ 1/m + a²/I of both bodies)."""
+    vs = slip.norm()
+    f = ti.Vector([0.0, 0.0, 0.0])
+    if vs > 0.0:
+        mag = ti.min(friction_coefficient(vs, mu_s, mu_d, v_s, v_d) * f_n, vs / (dt * inv_mass_t))
+        f = -mag / vs * slip
+    return f

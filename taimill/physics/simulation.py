@@ -1,0 +1,151 @@
+"""Running mills: Taichi set-up, the launch/drain loop feeding sinks, faults.
+
+    run(preset, sink) — one mill from a preset, summary returned.
+    Runner(specs)     — any batch of MillSpecs (tests, calibration, sweeps).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+
+import numpy as np
+import taichi as ti
+
+from taimill.errors import SimulationUnstable
+from taimill.physics import state as S
+from taimill.physics.engine import Engine
+from taimill.physics.mill import MillSpec, from_preset, grid_cells_for, write_mill
+from taimill.sinks import EVENT_COLUMNS, FanOut, NullSink
+from taimill.summary import SummarySink
+
+_initialised = False
+PARALLEL_ABOVE = 2000  # balls: beyond this one mill uses every core (parallel mode)
+GRID_ABOVE = 32  # balls: beyond this the spatial hash beats all pairs (scripts/bench.py)
+LAUNCH_SECONDS = 0.05  # simulated seconds per fused launch (≥ 10⁴ steps)
+
+
+def init_taichi(threads: int | None = None):
+    """ti.init once per process (a second call invalidates fields). Serial loops and
+    f64 make results bit-identical run to run (NOTES.md)."""
+    global _initialised
+    if _initialised:
+        return
+    kw = {}
+    if threads:
+        kw["cpu_max_num_threads"] = threads
+    ti.init(arch=ti.cpu, default_fp=ti.f64, default_ip=ti.i32, offline_cache=True,
+            log_level=os.environ.get("TAIMILL_TI_LOG", "warn"), **kw)
+    _initialised = True
+
+
+def events_table(raw: np.ndarray) -> dict[str, np.ndarray]:
+    """Raw event rows (engine order) → typed columns of sinks.EVENT_COLUMNS, sorted by
+    end time, then bodies, so every launch mode gives the same table."""
+    cols = dict(zip(S.EVENT_FIELDS, raw.T))
+    order = np.lexsort((cols["body_j"], cols["body_i"], cols["t_start"] + cols["duration"]))
+    out = {}
+    for name, (dtype, _, _) in EVENT_COLUMNS.items():
+        if name == "se_n":
+            out[name] = 0.5 * cols["m_eff"][order] * cols["un"][order] ** 2
+        elif name == "se_t":
+            out[name] = 0.5 * cols["m_eff"][order] * cols["ut"][order] ** 2
+        else:
+            out[name] = cols[name][order].astype(dtype)
+    return out
+
+
+def status_message(code: int, ball: int, t: float, dt: float) -> str:
+    what = {
+        S.NONFINITE: f"ball {ball} reached a non-finite or runaway state",
+        S.ESCAPED: f"ball {ball} left the jar through a wall",
+        S.SLOTS_FULL: f"ball {ball} has more than {S.PARTNER_SLOTS} simultaneous contacts",
+        S.LIST_FULL: f"ball {ball} has more than {S.NEIGHBOURS} neighbours within the skin",
+    }[code]
+    return f"unstable at t = {t:.6f} s: {what}; the time step dt = {dt:.3g} s is too large for the contact stiffness, or the input is unphysical"
+
+
+class Runner:
+    """Advances a batch of mills to their step targets, streaming to one sink each."""
+
+    def __init__(self, specs: list[MillSpec], *, mode: str | None = None, use_grid: bool | None = None):
+        init_taichi()
+        self.specs = specs
+        n = max(s.n for s in specs)
+        mode = mode or ("parallel" if len(specs) == 1 and n > PARALLEL_ABOVE else "fused")
+        use_grid = (n > GRID_ABOVE) if use_grid is None else use_grid
+        steps_per_launch = max(10_000, int(LAUNCH_SECONDS / min(s.dt for s in specs)))
+        frames = max(steps_per_launch // min(s.frame_every for s in specs) + 2, 4)
+        self.steps_per_launch = steps_per_launch if mode == "fused" else max(1, 4 * min(s.frame_every for s in specs))
+        self.engine = Engine(len(specs), n, mode=mode, use_grid=use_grid,
+                             grid_cells=max(grid_cells_for(s) for s in specs),
+                             frame_capacity=frames if mode == "fused" else max(8, self.steps_per_launch // min(s.frame_every for s in specs) + 2))
+        for b, spec in enumerate(specs):
+            write_mill(self.engine.F, b, spec)
+
+    def done(self) -> bool:
+        F = self.engine.F
+        return all(int(F.step[b]) >= int(F.target[b]) or int(F.status[b]) != S.OK for b in range(self.engine.B))
+
+    def time(self, b: int) -> float:
+        return int(self.engine.F.step[b]) * self.specs[b].dt
+
+    def launch(self, sinks) -> list[str | None]:
+        """One launch and drain; returns per mill None or the fault message."""
+        self.engine.advance(self.steps_per_launch)
+        faults = []
+        for b, sink in enumerate(sinks):
+            frames, raw, ledger = self.engine.drain(b)
+            if len(raw):
+                sink.events(events_table(raw))
+            if len(frames["time"]):
+                sink.frames(frames)
+                sink.energy({"time": frames["time"], **{k: ledger[:, c] for c, k in enumerate(S.LEDGER_FIELDS)}})
+            code = int(self.engine.F.status[b])
+            faults.append(None if code == S.OK else status_message(code, int(self.engine.F.bad_ball[b]), self.time(b), self.specs[b].dt))
+        return faults
+
+    def run(self, sinks, progress=None):
+        """Run every mill to its target; raises SimulationUnstable for the first fault
+        after every sink has received what was computed up to it."""
+        while not self.done():
+            faults = self.launch(sinks)
+            if progress:
+                progress(min(self.time(b) for b in range(self.engine.B)))
+            bad = [f for f in faults if f]
+            if bad:
+                raise SimulationUnstable(bad[0])
+
+    def final_state(self, b: int):
+        F = self.engine.F
+        n = self.specs[b].n
+        return {k: getattr(F, k).to_numpy()[b, :n] for k in ("x", "v", "s")}
+
+
+def run(preset, sink=None, *, duration: float | None = None, progress=None) -> dict:
+    """Simulate one preset; streams to `sink`; returns the SPEC §9 summary."""
+    sink = sink or NullSink()
+    spec = from_preset(preset, duration)
+    sim_seconds = spec.steps * spec.dt
+    summary = SummarySink(min(preset.analysis_start, sim_seconds), sim_seconds, preset.jar.radius, preset.balls.radius)
+    out = FanOut(summary, sink)
+    out.start(preset.as_dict() | {"duration": sim_seconds}, spec.n, spec.radius)
+    t0 = time.perf_counter()
+    runner = Runner([spec])
+    status = "complete"
+    try:
+        runner.run([out], progress)
+    except SimulationUnstable as err:
+        status = f"unstable: {err}"
+        raise
+    except KeyboardInterrupt:
+        status = "interrupted"
+        raise
+    finally:
+        wall = time.perf_counter() - t0
+        result = summary.result(runner.time(0), wall)
+        result.update(dt=spec.dt, steps=int(runner.engine.F.step[0]), status=status,
+                      ratio=preset.ratio, plate_rpm=preset.plate_omega * 30 / math.pi)
+        out.finish(result, status)
+    return result

@@ -1,0 +1,124 @@
+"""Taichi fields of a batch of B independent mills with up to N balls each.
+
+Model (fixed during a run, written by the launcher; live-tunable values such as the
+drive ramps and friction are field values, never Python globals — STYLE rule 6) is
+kept apart from State (evolving). Shapes in brackets, SI units.
+"""
+
+import taichi as ti
+
+# Contact slots per ball: 3 wall slots (side, floor, lid), then partner slots for the
+# ball-ball contacts this ball owns (partner index > own index). 12 = kissing number of
+# equal spheres, so a monodisperse packing can never overflow.
+WALLS = 3
+PARTNER_SLOTS = 12
+SLOTS = WALLS + PARTNER_SLOTS
+
+# Per-slot event accumulators (one open collision event per slot).
+SLOT_T0, SLOT_UN, SLOT_UT, SLOT_PX, SLOT_PY, SLOT_PZ, SLOT_FPEAK, SLOT_UPEAK, SLOT_DN, SLOT_DT = range(10)
+SLOT_DATA = 10
+
+# Event record columns (see taimill.sinks.EVENT_COLUMNS for meaning and units).
+EVENT_FIELDS = (
+    "t_start", "duration", "body_i", "body_j", "kind", "x", "y", "z", "un", "ut", "m_eff",
+    "peak_force", "peak_penetration", "dissipated_normal", "dissipated_friction",
+)
+NCOL = len(EVENT_FIELDS)
+
+# Energy ledger snapshot columns, taken with every frame.
+LEDGER_FIELDS = ("kinetic", "potential", "elastic", "drive_work", "dissipated")
+
+# Verlet list length per ball (equal spheres within a skin of 0.1 r: at most ~14).
+NEIGHBOURS = 32
+
+# Status codes.
+OK, NONFINITE, ESCAPED, SLOTS_FULL, LIST_FULL = 0, 1, 2, 3, 4
+
+MAX_PRIMITIVES = 8
+CONTACT_TYPES = 2  # 0 ball-ball, 1 ball-wall
+
+
+@ti.data_oriented
+class Fields:
+    def __init__(self, batch: int, balls: int, event_capacity: int, frame_capacity: int, grid_cells: int):
+        B, N = batch, balls
+        self.B, self.N, self.event_capacity, self.frame_capacity = B, N, event_capacity, frame_capacity
+        self.grid_cells = grid_cells
+        f64, i32, i64 = ti.f64, ti.i32, ti.i64
+        vec3 = ti.types.vector(3, f64)
+
+        # ---- model, per mill [B]
+        self.n_balls = ti.field(i32, B)
+        self.dt = ti.field(f64, B)  #: s
+        self.gravity = ti.field(f64, B)  #: m/s²
+        self.plate_radius = ti.field(f64, B)  #: R_p, m
+        self.height = ti.field(f64, B)  #: jar height, m
+        self.plate_ramp = ti.Vector.field(5, f64, B)  #: Ω ramp (t0, start, end, T, phase0)
+        self.jar_ramp = ti.Vector.field(5, f64, B)  #: w ramp, absolute jar spin
+        self.frame_every = ti.field(i32, B)  #: steps between frames
+        self.target = ti.field(i64, B)  #: step count to reach
+        # normal law per contact type [B, 2]: 0 ball-ball, 1 ball-wall
+        self.law = ti.field(i32, (B, CONTACT_TYPES))
+        self.law_k = ti.field(f64, (B, CONTACT_TYPES))  #: N/m^n
+        self.law_n = ti.field(f64, (B, CONTACT_TYPES))
+        self.law_c = ti.field(f64, (B, CONTACT_TYPES))
+        self.law_d = ti.field(f64, (B, CONTACT_TYPES))  #: m
+        # friction (eq 3.7), live-tunable [B]
+        self.mu_s = ti.field(f64, B)
+        self.mu_d = ti.field(f64, B)
+        self.v_s = ti.field(f64, B)  #: m/s
+        self.v_d = ti.field(f64, B)  #: m/s
+        # jar profile: primitive type and parameters (m) [B, P]
+        self.n_prims = ti.field(i32, B)
+        self.prim_type = ti.field(i32, (B, MAX_PRIMITIVES))
+        self.prim_par = ti.Vector.field(4, f64, (B, MAX_PRIMITIVES))
+        # uniform grid of the spatial hash [B]
+        self.grid_lo = ti.Vector.field(3, f64, B)  #: m, corner of the grid
+        self.grid_h = ti.field(f64, B)  #: m, cell edge (≥ largest ball diameter)
+        self.grid_dim = ti.Vector.field(3, i32, B)
+        self.skin = ti.field(f64, B)  #: m, Verlet-list skin
+
+        # ---- per ball [B, N]
+        self.r = ti.field(f64, (B, N))  #: m
+        self.m = ti.field(f64, (B, N))  #: kg
+        self.inv_i = ti.field(f64, (B, N))  #: 1/(kg m²)
+
+        # ---- state [B, N]
+        self.x = ti.field(vec3, (B, N))  #: position, jar frame, m
+        self.v = ti.field(vec3, (B, N))  #: velocity, jar frame, m/s
+        self.s = ti.field(vec3, (B, N))  #: absolute spin in jar-frame components, rad/s
+        self.f = ti.field(vec3, (B, N))  #: contact force of this step, N
+        self.tau = ti.field(vec3, (B, N))  #: contact torque of this step, N m
+        self.drive_work = ti.field(f64, (B, N))  #: J, walls' work on this ball
+        self.dissipated = ti.field(f64, (B, N))  #: J, in contacts this ball owns
+        self.elastic = ti.field(f64, (B, N))  #: J, stored now in contacts this ball owns
+        self.step = ti.field(i64, B)
+        self.status = ti.field(i32, B)
+        self.bad_ball = ti.field(i32, B)
+
+        # ---- open contacts [B, N, SLOTS]
+        self.slot_mask = ti.field(i32, (B, N))  #: bit k set: slot k holds an open event
+        self.slot_partner = ti.field(i32, (B, N, SLOTS))  #: partner ball of slot k ≥ WALLS
+        self.slot = ti.Vector.field(SLOT_DATA, f64, (B, N, SLOTS))
+
+        # ---- spatial hash [B, cells] and [B, N]
+        self.cell_count = ti.field(i32, (B, grid_cells))
+        self.cell_start = ti.field(i32, (B, grid_cells))
+        self.cell_of = ti.field(i32, (B, N))
+        self.sorted_ids = ti.field(i32, (B, N))
+
+        # ---- Verlet neighbour lists [B, N, NEIGHBOURS]
+        self.rebuild = ti.field(i32, B)  #: 1: lists are stale
+        self.x_ref = ti.field(vec3, (B, N))  #: positions at the last build, m
+        self.nbr_count = ti.field(i32, (B, N))
+        self.nbr = ti.field(i32, (B, N, NEIGHBOURS))
+
+        # ---- output buffers, drained by the launcher after every launch
+        self.events = ti.Vector.field(NCOL, f64, (B, event_capacity))
+        self.n_events = ti.field(i32, B)
+        self.frame_t = ti.field(f64, (B, frame_capacity))
+        self.frame_x = ti.field(vec3, (B, frame_capacity, N))
+        self.frame_v = ti.field(vec3, (B, frame_capacity, N))
+        self.frame_s = ti.field(vec3, (B, frame_capacity, N))
+        self.frame_ledger = ti.Vector.field(len(LEDGER_FIELDS), f64, (B, frame_capacity))
+        self.n_frames = ti.field(i32, B)

@@ -1,0 +1,163 @@
+"""The one stream a simulation emits, and the sinks that consume it.
+
+A run produces three tables, appended in blocks while it runs (STYLE rule 12: zarr,
+rerun and the TUI consume the same stream through this one interface):
+
+- frames   — `time` (F,) s; `position`, `velocity` (F, N, 3) m, m/s in the jar frame;
+             `spin` (F, N, 3) rad/s, absolute spin in jar-frame components.
+- events   — one row per collision event (SPEC §5), columns listed in `EVENT_COLUMNS`.
+- energy   — one row per frame: `time` and the cumulative energy ledger (J), columns in
+             `ENERGY_COLUMNS`.
+
+Sinks see NumPy arrays and plain dicts only (STYLE rule 7: no taichi here).
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+# name -> (dtype, unit, meaning)
+EVENT_COLUMNS: dict[str, tuple[str, str, str]] = {
+    "t_start": ("f8", "s", "time of first touch"),
+    "duration": ("f8", "s", "first touch to separation"),
+    "body_i": ("i4", "-", "ball index (the lower index for ball-ball)"),
+    "body_j": ("i4", "-", "partner ball index, or -1 side wall, -2 floor, -3 lid"),
+    "kind": ("i1", "-", "0 ball-ball, 1 ball-wall"),
+    "x": ("f8", "m", "contact point at onset, jar frame"),
+    "y": ("f8", "m", "contact point at onset, jar frame"),
+    "z": ("f8", "m", "contact point at onset, jar frame"),
+    "un": ("f8", "m/s", "onset normal approach speed (>= 0)"),
+    "ut": ("f8", "m/s", "onset slip speed at the contact point, spin included"),
+    "m_eff": ("f8", "kg", "effective mass m_i m_j/(m_i+m_j); m_ball for walls"),
+    "se_n": ("f8", "J", "normal stress energy 1/2 m_eff un^2"),
+    "se_t": ("f8", "J", "tangential stress energy 1/2 m_eff ut^2"),
+    "peak_force": ("f8", "N", "largest normal force during the event"),
+    "peak_penetration": ("f8", "m", "largest overlap during the event"),
+    "dissipated_normal": ("f8", "J", "work of the normal damper (and of the F>=0 clamp)"),
+    "dissipated_friction": ("f8", "J", "friction work"),
+}
+
+ENERGY_COLUMNS: dict[str, tuple[str, str, str]] = {
+    "time": ("f8", "s", "simulated time"),
+    "kinetic": ("f8", "J", "ground-frame kinetic energy, translation + rotation"),
+    "potential": ("f8", "J", "gravitational energy m g z"),
+    "elastic": ("f8", "J", "energy stored in the contact springs"),
+    "drive_work": ("f8", "J", "work done by the jar walls on the balls since t = 0"),
+    "dissipated": ("f8", "J", "energy dissipated by all contacts since t = 0"),
+}
+
+FRAME_FIELDS = ("time", "position", "velocity", "spin")
+
+
+def empty_events() -> dict[str, np.ndarray]:
+    return {k: np.zeros(0, dtype=v[0]) for k, v in EVENT_COLUMNS.items()}
+
+
+class Sink(Protocol):
+    """What every consumer of a run implements. Calls come in this order:
+    `start` once, then any interleaving of `frames`/`events`/`energy`, then `finish`
+    once (also after a failure, with `status` saying what happened)."""
+
+    def start(self, config: dict, n_balls: int, radii: np.ndarray) -> None: ...
+
+    def frames(self, block: dict[str, np.ndarray]) -> None: ...
+
+    def events(self, block: dict[str, np.ndarray]) -> None: ...
+
+    def energy(self, block: dict[str, np.ndarray]) -> None: ...
+
+    def finish(self, summary: dict, status: str) -> None: ...
+
+
+class NullSink:
+    """Discards everything (tests, benchmarks)."""
+
+    def start(self, config, n_balls, radii):
+        pass
+
+    def frames(self, block):
+        pass
+
+    def events(self, block):
+        pass
+
+    def energy(self, block):
+        pass
+
+    def finish(self, summary, status):
+        pass
+
+
+class MemorySink:
+    """Keeps everything in memory, concatenated on demand (tests, analysis of short runs)."""
+
+    def __init__(self):
+        self.config: dict | None = None
+        self.summary: dict | None = None
+        self.status: str | None = None
+        self._frames: list[dict] = []
+        self._events: list[dict] = []
+        self._energy: list[dict] = []
+
+    def start(self, config, n_balls, radii):
+        self.config = config
+        self.radii = np.asarray(radii)
+
+    def frames(self, block):
+        self._frames.append(block)
+
+    def events(self, block):
+        self._events.append(block)
+
+    def energy(self, block):
+        self._energy.append(block)
+
+    def finish(self, summary, status):
+        self.summary, self.status = summary, status
+
+    @staticmethod
+    def _cat(blocks, names):
+        if not blocks:
+            return None
+        return {k: np.concatenate([b[k] for b in blocks]) for k in names}
+
+    @property
+    def frame_table(self):
+        return self._cat(self._frames, FRAME_FIELDS)
+
+    @property
+    def event_table(self):
+        return self._cat(self._events, EVENT_COLUMNS) or empty_events()
+
+    @property
+    def energy_table(self):
+        return self._cat(self._energy, ENERGY_COLUMNS)
+
+
+class FanOut:
+    """Sends the stream to several sinks."""
+
+    def __init__(self, *sinks: Sink):
+        self.sinks = sinks
+
+    def start(self, config, n_balls, radii):
+        for s in self.sinks:
+            s.start(config, n_balls, radii)
+
+    def frames(self, block):
+        for s in self.sinks:
+            s.frames(block)
+
+    def events(self, block):
+        for s in self.sinks:
+            s.events(block)
+
+    def energy(self, block):
+        for s in self.sinks:
+            s.energy(block)
+
+    def finish(self, summary, status):
+        for s in self.sinks:
+            s.finish(summary, status)

@@ -317,6 +317,7 @@ def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source)
     t = _Table(db[contact], MATERIALS_FILE, f"contact.{contact}.")
     ball_mat = t.get("ball", kind=str)
     wall_mat = t.get("wall", kind=str)
+    t.get("ball_radius_mm", lo=0, lo_open=True, hi=1000)
     law = law or t.get("law", kind=str, allowed=tuple(laws_np.LAWS))
     t.used.add("law")
     if ball_mat != balls.material.name:
@@ -331,6 +332,20 @@ def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source)
     bw = _normal_law(t.table("ball_wall"), law, k_bw, m)
     t.done()
     return bb, bw
+
+
+def pair_contact(pair: str, radius: float | None = None, law: str | None = None, source="command line"):
+    """Everything a single impact needs for a friction pair, without a preset:
+    (Balls of one ball, Jar of the wall material, ball-ball law, ball-wall law, Friction).
+    radius (m) defaults to the balls the contact set was fitted for."""
+    friction, contact = load_friction(pair, source)
+    db = _materials_db()["contact"][contact]
+    ball = Balls(1, load_material(db["ball"], MATERIALS_FILE), radius or db["ball_radius_mm"] * 1e-3)
+    jar = Jar("plate", "drop test", 10.0, db["wall"], (("circle", {"radius": 1.0}),))
+    if law is not None and law not in laws_np.LAWS:
+        raise ConfigError(source, "law", law, f"must be one of {', '.join(laws_np.LAWS)}")
+    bb, bw = _contact_laws(contact, law, ball, jar, source)
+    return ball, jar, bb, bw, friction
 
 
 # ------------------------------------------------------------------ presets

@@ -35,7 +35,7 @@ def contact_response(F: ti.template(), b, ct: ti.template(), u, nrm, vrel, m_eff
     udot_mid = udot - 0.5 * fn * dt / m_eff
     dn = (fn - fel) * udot_mid * dt
     dtf = (-ft.dot(slip) - 0.5 * ft.norm_sqr() * inv_mass_t * dt) * dt
-    return -fn * nrm + ft, udot, slip, fn, dn, dtf, elastic_energy(u, k, n)
+    return -fn * nrm + ft, udot, slip, fn, dn, dtf, elastic_energy(u, fel, n)
 
 
 @ti.func
@@ -150,7 +150,10 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
     for wall in ti.static(range(S.WALLS)):
         phi, grad = wall_sdf(F, b, wall, xi)
         u = ri - phi
-        if u > 0.0:
+        if phi < -ri:  # centre beyond the wall: it tunnelled (dt too large for the stiffness)
+            F.status[b] = S.ESCAPED
+            F.bad_ball[b] = i
+        elif u > 0.0:
             nrm = -grad
             a = nrm * (ri - 0.5 * u)
             vrel = vi + (si - wz).cross(a)

@@ -77,7 +77,7 @@ def step_mill(F: ti.template(), b, use_grid: ti.template()):
 
 
 @ti.kernel
-def advance_fused(F: ti.template(), n_steps: ti.i64, use_grid: ti.template()):
+def advance_fused(F: ti.template(), n_steps: ti.i32, use_grid: ti.template()):
     for task in range(F.B * PAD):
         if task % PAD == 0:
             b = task // PAD
@@ -90,12 +90,13 @@ def advance_fused(F: ti.template(), n_steps: ti.i64, use_grid: ti.template()):
 
 # ---- parallel mode (b = 0), one launch per phase
 @ti.kernel
-def begin_step(F: ti.template()) -> ti.i32:
+def begin_step(F: ti.template(), margin: ti.i32) -> ti.i32:
+    """Frame if due; returns 0 (stop), 1 (step) or 2 (step, lists stale)."""
     go = 0
     ti.loop_config(serialize=True)
     for _ in range(1):
-        if can_step(F, 0, 0):
-            go = 1
+        if can_step(F, 0, margin):
+            go = 1 + F.rebuild[0]
             t = F.step[0] * F.dt[0]
             if F.step[0] % F.frame_every[0] == 0:
                 snapshot(F, 0, t, drive(F, 0, t))
@@ -172,9 +173,10 @@ class Engine:
             return
         margin = F.N * S.SLOTS
         for _ in range(n_steps):
-            if F.n_events[0] + margin > F.event_capacity or not begin_step(F):
+            go = begin_step(F, margin)
+            if not go:
                 break
-            if F.rebuild[0]:
+            if go == 2:
                 rebuild_parallel(F)
             forces_parallel(F)
             integrate_parallel(F)

@@ -10,7 +10,6 @@ import taichi as ti
 from taimill.physics import state as S
 from taimill.physics.frame import coriolis_step, frame_acceleration, spin_step
 from taimill.physics.neighbours import moved_too_far
-from taimill.physics.walls import wall_sdf
 
 
 @ti.func
@@ -29,14 +28,8 @@ def integrate(F: ti.template(), b, i, dr, dt):
 
 @ti.func
 def check_ball(F: ti.template(), b, i, x):
-    """Flag a non-finite state, or a centre beyond a wall by more than a radius (a ball
-    that tunnelled out: the time step is too large for the contact stiffness)."""
+    """Flag a non-finite or runaway state (NaN fails every comparison). A ball that
+    tunnelled through a wall is caught by the contact loop (contacts.py)."""
     if not (ti.abs(x[0]) < 1e3 and ti.abs(x[1]) < 1e3 and ti.abs(x[2]) < 1e3):
         F.status[b] = S.NONFINITE
         F.bad_ball[b] = i
-    else:
-        for wall in ti.static(range(S.WALLS)):
-            phi, _ = wall_sdf(F, b, wall, x)
-            if phi < -F.r[b, i]:
-                F.status[b] = S.ESCAPED
-                F.bad_ball[b] = i

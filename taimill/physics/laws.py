@@ -13,30 +13,42 @@ def smoothstep(s):
 
 
 @ti.func
-def damping_shape(law: ti.i32, u, k, n, d, m_eff):
-    """g(u) of the law table in laws_np."""
+def power(u, n):
+    """uⁿ for u ≥ 0; the Hertz exponent 3/2 through a square root (5× cheaper than pow)."""
+    p = u
+    if n == 1.5:
+        p = u * ti.sqrt(u)
+    elif n != 1.0:
+        p = ti.pow(u, n)
+    return p
+
+
+@ti.func
+def damping_shape(law: ti.i32, u, un, k, n, d, m_eff):
+    """g(u) of the law table in laws_np; un = uⁿ."""
     g = 1.0
     if law == 0:  # adams-impact, eqs 2.20 / 3.2
         g = smoothstep(u / d)
     elif law == 3:  # hunt-crossley, eq 2.19
-        g = k * ti.pow(u, n)
+        g = k * un
     elif law == 4:  # hertz-mindlin, damping ∝ √(m_e S_n), S_n = n k u^(n-1)
-        g = ti.sqrt(m_eff * n * k) * ti.pow(u, 0.5 * (n - 1.0))
+        g = ti.sqrt(m_eff * n * k * un / u)
     return g
 
 
 @ti.func
 def normal_force(law: ti.i32, u, udot, k, n, c, d, m_eff):
-    """(F, F_elastic), N: F = max(0, k uⁿ + c g(u) u̇), never attractive."""
-    f_el = k * ti.pow(u, n)
-    f = ti.max(0.0, f_el + c * damping_shape(law, u, k, n, d, m_eff) * udot)
+    """(F, F_elastic), N: F = max(0, k uⁿ + c g(u) u̇), never attractive. u > 0."""
+    un = power(u, n)
+    f_el = k * un
+    f = ti.max(0.0, f_el + c * damping_shape(law, u, un, k, n, d, m_eff) * udot)
     return f, f_el
 
 
 @ti.func
-def elastic_energy(u, k, n):
-    """k u^(n+1)/(n+1), J."""
-    return k * ti.pow(u, n + 1.0) / (n + 1.0)
+def elastic_energy(u, f_el, n):
+    """k u^(n+1)/(n+1) = F_el u/(n+1), J."""
+    return f_el * u / (n + 1.0)
 
 
 @ti.func

@@ -75,10 +75,9 @@ def normal_force(law, u, udot, k, n, c, d, m_eff):
     return np.maximum(0.0, f_el + c * damping_shape(law, u, k, n, d, m_eff) * udot), f_el
 
 
-def elastic_energy(u, k, n):
-    """Energy stored in the spring, k u^(n+1)/(n+1), J."""
-    u = np.maximum(u, 0.0)
-    return k * u ** (n + 1.0) / (n + 1.0)
+def elastic_energy(u, f_el, n):
+    """Energy stored in the spring, k u^(n+1)/(n+1) = F_el u/(n+1), J."""
+    return f_el * np.maximum(u, 0.0) / (n + 1.0)
 
 
 def friction_coefficient(v, mu_s, mu_d, v_s, v_d):

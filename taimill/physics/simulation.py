@@ -6,8 +6,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import sys
 import time
 
 import numpy as np
@@ -24,19 +26,32 @@ _initialised = False
 PARALLEL_ABOVE = 2000  # balls: beyond this one mill uses every core (parallel mode)
 GRID_ABOVE = 32  # balls: beyond this the spatial hash beats all pairs (scripts/bench.py)
 LAUNCH_SECONDS = 0.05  # simulated seconds per fused launch (≥ 10⁴ steps)
+FRAME_CAPACITY = 256  # frames buffered per mill between drains
+_engines: dict = {}
+
+
+def _engine(batch, balls, mode, use_grid, cells) -> Engine:
+    """Engines are reused within a process: new fields mean new kernel instances, and
+    compiling those costs ≈ 1.3 s each."""
+    key = (batch, balls, mode, use_grid, cells)
+    if key not in _engines:
+        _engines[key] = Engine(batch, balls, mode=mode, use_grid=use_grid, grid_cells=cells, frame_capacity=FRAME_CAPACITY)
+    return _engines[key]
 
 
 def init_taichi(threads: int | None = None):
     """ti.init once per process (a second call invalidates fields). Serial loops and
-    f64 make results bit-identical run to run (NOTES.md)."""
+    f64 make results bit-identical run to run (NOTES.md); without fast-math the
+    compiler may not contract or reassociate, so both launch modes agree to the bit."""
     global _initialised
     if _initialised:
         return
     kw = {}
     if threads:
         kw["cpu_max_num_threads"] = threads
-    ti.init(arch=ti.cpu, default_fp=ti.f64, default_ip=ti.i32, offline_cache=True,
-            log_level=os.environ.get("TAIMILL_TI_LOG", "warn"), **kw)
+    with contextlib.redirect_stdout(sys.stderr):  # ti.init prints "Starting on arch"
+        ti.init(arch=ti.cpu, default_fp=ti.f64, default_ip=ti.i32, offline_cache=True, fast_math=False,
+                log_level=os.environ.get("TAIMILL_TI_LOG", "warn"), **kw)
     _initialised = True
 
 
@@ -75,12 +90,14 @@ class Runner:
         n = max(s.n for s in specs)
         mode = mode or ("parallel" if len(specs) == 1 and n > PARALLEL_ABOVE else "fused")
         use_grid = (n > GRID_ABOVE) if use_grid is None else use_grid
-        steps_per_launch = max(10_000, int(LAUNCH_SECONDS / min(s.dt for s in specs)))
-        frames = max(steps_per_launch // min(s.frame_every for s in specs) + 2, 4)
-        self.steps_per_launch = steps_per_launch if mode == "fused" else max(1, 4 * min(s.frame_every for s in specs))
-        self.engine = Engine(len(specs), n, mode=mode, use_grid=use_grid,
-                             grid_cells=max(grid_cells_for(s) for s in specs),
-                             frame_capacity=frames if mode == "fused" else max(8, self.steps_per_launch // min(s.frame_every for s in specs) + 2))
+        every = min(s.frame_every for s in specs)
+        if mode == "fused":
+            steps = max(10_000, int(LAUNCH_SECONDS / min(s.dt for s in specs)))
+            self.steps_per_launch = max(1, min(steps, (FRAME_CAPACITY - 2) * every))
+        else:
+            self.steps_per_launch = max(1, min(every, 1000))
+        cells = 1 << max(grid_cells_for(s) for s in specs).bit_length() if use_grid or mode == "parallel" else 1
+        self.engine = _engine(len(specs), n, mode, use_grid, cells)
         for b, spec in enumerate(specs):
             write_mill(self.engine.F, b, spec)
 

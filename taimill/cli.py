@@ -1,0 +1,229 @@
+"""`taimill` command line. Heavy imports (taichi, zarr) happen inside the commands so
+`taimill --help` stays fast. Bad input: one line on stderr, exit code 2."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+EXIT_BAD_INPUT, EXIT_UNSTABLE = 2, 3
+
+# (key in the summary, label, unit, scale)
+SUMMARY_ROWS = (
+    ("sim_seconds", "simulated time", "s", 1),
+    ("wall_seconds", "wall time", "s", 1),
+    ("realtime_factor", "simulated s per wall s", "", 1),
+    ("dt", "time step", "µs", 1e6),
+    ("events", "collision events in window", "", 1),
+    ("events_ball_ball", "  ball-ball", "", 1),
+    ("events_ball_wall", "  ball-wall", "", 1),
+    ("collision_rate", "collision rate", "1/s", 1),
+    ("impact_power", "impact power E_I/τ (eq 3.8)", "W", 1),
+    ("impact_power_normal", "  normal", "W", 1),
+    ("impact_power_tangential", "  tangential", "W", 1),
+    ("mean_se", "mean stress energy", "mJ", 1e3),
+    ("mean_se_normal", "  normal", "mJ", 1e3),
+    ("mean_se_tangential", "  tangential", "mJ", 1e3),
+    ("normal_fraction", "normal / total SE", "", 1),
+    ("dissipated_power", "dissipated power", "W", 1),
+    ("energy_balance_error", "energy balance error", "%", 100),
+    ("randomness_index", "randomness index 1/σ", "", 1),
+    ("regime", "motion regime", "", None),
+)
+
+
+def _overrides(a) -> dict:
+    dt = a.dt
+    if dt is not None and dt != "auto":
+        try:
+            dt = float(dt)
+        except ValueError:
+            dt = a.dt
+    return {
+        "ratio": a.ratio, "jar_rpm": a.jar_rpm, "plate_rpm": a.plate_rpm, "pair": a.pair,
+        "jar": a.jar, "balls.count": a.balls, "seed": a.seed, "duration": a.duration, "dt": dt,
+        "law": a.law,
+    }
+
+
+def _add_overrides(p):
+    g = p.add_argument_group("preset overrides")
+    g.add_argument("--ratio", type=float, help="K = ω/Ω + 1 (jar spin / plate spin)")
+    g.add_argument("--jar-rpm", type=float, help="ω, jar speed relative to the plate (rpm)")
+    g.add_argument("--plate-rpm", type=float, help="Ω (rpm)")
+    g.add_argument("--pair", help="friction pair, e.g. steel-fluorite")
+    g.add_argument("--jar", help="jar name (jars/NAME.toml) or path")
+    g.add_argument("--balls", type=int, help="number of balls")
+    g.add_argument("--seed", type=int)
+    g.add_argument("--duration", type=float, help="simulated seconds")
+    g.add_argument("--dt", help="time step in s, or 'auto'")
+    g.add_argument("--law", help="normal contact law (adams-impact, kelvin-voigt, hertz-damper, hunt-crossley, hertz-mindlin)")
+
+
+def _fmt(value, scale):
+    if scale is None or isinstance(value, str):
+        return str(value)
+    if isinstance(value, int):
+        return f"{value:d}"
+    if value is None or not math.isfinite(value):
+        return str(value)
+    return f"{value * scale:.4g}"
+
+
+def summary_table(s: dict) -> str:
+    rows = [(label, _fmt(s.get(key), scale), unit) for key, label, unit, scale in SUMMARY_ROWS if key in s]
+    w = max(len(r[0]) for r in rows)
+    return "\n".join(f"{label:<{w}}  {value:>12} {unit}" for label, value, unit in rows)
+
+
+def cmd_run(a) -> int:
+    from taimill.errors import SimulationUnstable
+    from taimill.params import load_preset
+
+    preset = load_preset(a.preset, _overrides(a))
+    if a.out and Path(a.out).exists() and not a.overwrite:
+        from taimill.errors import ConfigError
+
+        raise ConfigError("command line", "--out", a.out, "exists; pass --overwrite to replace it")
+    from taimill.physics.simulation import run
+    from taimill.sinks import NullSink
+
+    sink = NullSink()
+    if a.out:
+        from taimill.store import ZarrSink
+
+        sink = ZarrSink(a.out)
+    show_bar = not a.json or sys.stderr.isatty()
+    try:
+        if show_bar:
+            summary = _run_with_bar(run, preset, sink)
+        else:
+            summary = run(preset, sink)
+    except SimulationUnstable as err:
+        print(f"taimill: {err}" + (f" (everything up to it is in {a.out})" if a.out else ""), file=sys.stderr)
+        return EXIT_UNSTABLE
+    if a.json:
+        print(json.dumps(_plain(summary)))
+    else:
+        print(f"{preset.source}: {preset.jar.name} jar, {preset.balls.count} balls, {preset.pair}, "
+              f"Ω = {preset.plate_omega * 30 / math.pi:g} rpm, K = {preset.ratio:g}")
+        print(summary_table(summary))
+        if a.out:
+            print(f"stored in {a.out}")
+    return 0
+
+
+def _run_with_bar(run, preset, sink):
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.completed:.2f}/{task.total:.1f} s"),
+                  TimeRemainingColumn(), transient=True, console=_stderr_console()) as bar:
+        task = bar.add_task("run", total=preset.duration)
+        return run(preset, sink, progress=lambda t: bar.update(task, completed=t))
+
+
+def _stderr_console():
+    from rich.console import Console
+
+    return Console(stderr=True)
+
+
+def _plain(d):
+    """JSON-safe: numpy scalars to Python, non-finite floats to null."""
+    out = {}
+    for k, v in d.items():
+        if hasattr(v, "item"):
+            v = v.item()
+        if isinstance(v, float) and not math.isfinite(v):
+            v = None
+        out[k] = v
+    return out
+
+
+def cmd_drop(a) -> int:
+    from taimill.errors import ConfigError
+    from taimill.physics.calibration import drop_test
+
+    if not 0 < a.h0 <= 10_000:
+        raise ConfigError("command line", "--h0", a.h0, "drop height in mm, allowed range (0, 10000]")
+    if a.radius_mm is not None and not 0 < a.radius_mm <= 100:
+        raise ConfigError("command line", "--radius-mm", a.radius_mm, "allowed range (0, 100]")
+    r = drop_test(a.pair, a.h0 * 1e-3, target=a.target, law=a.law,
+                  radius=None if a.radius_mm is None else a.radius_mm * 1e-3)
+    if a.json:
+        print(json.dumps(_plain(r)))
+    else:
+        print(f"{r['pair']} ({r['law']}), ball of {r['ball_radius'] * 1e3:g} mm radius on the {r['target']}, "
+              f"from h0 = {a.h0:g} mm ({r['impact_speed']:.3f} m/s):")
+        print(f"  restitution e            {r['e']:.4f}")
+        print(f"  rebound height h*        {r['rebound_height'] * 1e3:.1f} mm")
+        print(f"  contact duration         {r['contact_duration'] * 1e6:.1f} µs")
+        print(f"  peak force               {r['peak_force']:.0f} N")
+        print(f"  peak penetration         {r['peak_penetration'] * 1e6:.2f} µm")
+    return 0
+
+
+def cmd_presets(a) -> int:
+    from taimill.params import ROOT
+
+    for p in sorted((ROOT / "presets").glob("*.toml")):
+        first = p.read_text().splitlines()[0].lstrip("# ")
+        print(f"{p.relative_to(ROOT)}  {first}")
+    return 0
+
+
+def cmd_jars(a) -> int:
+    from taimill.params import jar_names, load_jar
+
+    for name in jar_names():
+        j = load_jar(name)
+        print(f"{name:6} {j.area * 1e6:8.1f} mm²  {j.volume * 1e6:6.1f} ml  {j.description}")
+    return 0
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="taimill", description="Planetary ball mill simulator (Taichi DEM in the jar frame).")
+    sub = p.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("run", help="simulate a preset, summarise, store")
+    r.add_argument("preset", help="preset TOML file, e.g. presets/p4-cy-steel.toml")
+    r.add_argument("--out", help="zarr store to write (RUN.zarr)")
+    r.add_argument("--overwrite", action="store_true", help="replace an existing --out store")
+    r.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
+    _add_overrides(r)
+    r.set_defaults(fn=cmd_run)
+
+    c = sub.add_parser("calibrate", help="contact-parameter calibration experiments")
+    csub = c.add_subparsers(dest="experiment", required=True)
+    d = csub.add_parser("drop", help="drop test: restitution and rebound height")
+    d.add_argument("--pair", required=True, help="friction/contact pair, e.g. steel-steel")
+    d.add_argument("--h0", type=float, required=True, help="drop height (mm)")
+    d.add_argument("--target", choices=("plate", "ball"), default="plate")
+    d.add_argument("--law", help="normal law (default: the pair's)")
+    d.add_argument("--radius-mm", type=float, help="ball radius (default: the pair's fitted balls)")
+    d.add_argument("--json", action="store_true")
+    d.set_defaults(fn=cmd_drop)
+
+    sub.add_parser("presets", help="list presets").set_defaults(fn=cmd_presets)
+    sub.add_parser("jars", help="list jars").set_defaults(fn=cmd_jars)
+    return p
+
+
+def main(argv=None) -> int:
+    from taimill.errors import ConfigError
+
+    a = parser().parse_args(argv)
+    try:
+        return a.fn(a)
+    except ConfigError as err:
+        print(f"taimill: error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("taimill: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

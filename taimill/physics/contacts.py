@@ -177,6 +177,6 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
     close_events(F, b, i, was_open, seen, t)
     F.f[b, i] = f
     F.tau[b, i] = tq
-    F.drive_work[b, i] += drive
-    F.dissipated[b, i] += diss
+    F.drive_step[b, i] = drive
+    F.diss_step[b, i] = diss
     F.elastic[b, i] = stored

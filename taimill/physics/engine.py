@@ -23,7 +23,7 @@ PAD = 512
 
 @ti.func
 def drive(F: ti.template(), b, t):
-    return drive_at(F.plate_ramp[b], F.jar_ramp[b], t)
+    return drive_at(F.plate_ramp[b], F.jar_ramp[b], t, F.dt[b])
 
 
 @ti.func
@@ -60,17 +60,18 @@ def can_step(F: ti.template(), b, margin):
 
 @ti.func
 def step_mill(F: ti.template(), b, use_grid: ti.template()):
-    """One time step of mill b: frame, neighbour lists if stale, forces, integration."""
+    """One time step of mill b: neighbour lists if stale, forces, frame (its stored
+    energy is that of the forces just computed), integration."""
     dt = F.dt[b]
     st = F.step[b]
     t = st * dt
     dr = drive(F, b, t)
-    if st % F.frame_every[b] == 0:
-        snapshot(F, b, t, dr)
     if F.rebuild[b]:
         rebuild_serial(F, b, use_grid)
     for i in range(F.n_balls[b]):
         ball_forces(F, b, i, t, dr, dt)
+    if st % F.frame_every[b] == 0:
+        snapshot(F, b, t, dr)
     for i in range(F.n_balls[b]):
         integrate(F, b, i, dr, dt)
     F.step[b] = st + 1
@@ -88,19 +89,34 @@ def advance_fused(F: ti.template(), n_steps: ti.i32, use_grid: ti.template()):
                 step_mill(F, b, use_grid)
 
 
+@ti.kernel
+def rebuild_fused(F: ti.template(), use_grid: ti.template()):
+    for task in range(F.B * PAD):
+        if task % PAD == 0:
+            rebuild_serial(F, task // PAD, use_grid)
+
+
 # ---- parallel mode (b = 0), one launch per phase
+GO, STALE, FRAME = 1, 2, 4
+
+
 @ti.kernel
 def begin_step(F: ti.template(), margin: ti.i32) -> ti.i32:
-    """Frame if due; returns 0 (stop), 1 (step) or 2 (step, lists stale)."""
+    """0 (stop) or GO, plus STALE if the lists need a rebuild, FRAME if a frame is due."""
     go = 0
+    if can_step(F, 0, margin):
+        go = GO + STALE * F.rebuild[0]
+        if F.step[0] % F.frame_every[0] == 0:
+            go += FRAME
+    return go
+
+
+@ti.kernel
+def frame_parallel(F: ti.template()):
     ti.loop_config(serialize=True)
     for _ in range(1):
-        if can_step(F, 0, margin):
-            go = 1 + F.rebuild[0]
-            t = F.step[0] * F.dt[0]
-            if F.step[0] % F.frame_every[0] == 0:
-                snapshot(F, 0, t, drive(F, 0, t))
-    return go
+        t = F.step[0] * F.dt[0]
+        snapshot(F, 0, t, drive(F, 0, t))
 
 
 @ti.kernel
@@ -176,10 +192,24 @@ class Engine:
             go = begin_step(F, margin)
             if not go:
                 break
-            if go == 2:
+            if go & STALE:
                 rebuild_parallel(F)
             forces_parallel(F)
+            if go & FRAME:
+                frame_parallel(F)
             integrate_parallel(F)
+
+    def build_lists(self):
+        """Rebuild every neighbour list now (the step does it when they go stale)."""
+        if self.mode == "fused":
+            rebuild_fused(self.F, self.use_grid)
+        else:
+            rebuild_parallel(self.F)
+
+    def neighbour_lists(self, b: int) -> list[list[int]]:
+        count = self.F.nbr_count.to_numpy()[b]
+        nbr = self.F.nbr.to_numpy()[b]
+        return [list(nbr[i, : count[i]]) for i in range(int(self.F.n_balls[b]))]
 
     def drain(self, b: int):
         """Frames and events of mill b buffered since the last drain, as NumPy arrays;

@@ -1,26 +1,36 @@
 """Semi-implicit (symplectic) Euler in the jar frame. The integrator knows no force law
-(STYLE rule 4): contact forces come in through f and tau, the frame through frame.py.
+(STYLE rule 4): contact forces come in through f and tau; the frame through frame.py,
+whose spin is an exact change of basis and whose translation is a force term:
 
-    v ← coriolis(v + dt (f/m + a_frame)),   x ← x + dt v,
-    s ← R_z(-w dt)(s + dt τ/I)   (absolute spin, components in the turning jar basis)
+    u = v + w ẑ×x                       velocity in the non-rotating jar-centred frame
+    u ← u + dt (f/m + a_translation - g ẑ),   x ← x + dt u
+    x, u, s ← turned into the new jar basis (Δφ_jar),   v = u - w' ẑ×x
+    s ← s + dt τ/I before the turn (absolute spin)
+
+and books the step's drive work and dissipation into the ledger, after the frame of
+this step was taken (so a frame sees state, stored energy and ledger of one instant).
 """
 
 import taichi as ti
 
 from taimill.physics import state as S
-from taimill.physics.frame import coriolis_step, frame_acceleration, spin_step
+from taimill.physics.frame import from_non_rotating, to_non_rotating, translation_acceleration, turn_basis
 from taimill.physics.neighbours import moved_too_far
 
 
 @ti.func
 def integrate(F: ti.template(), b, i, dr, dt):
-    x, v = F.x[b, i], F.v[b, i]
-    a = F.f[b, i] / F.m[b, i] + frame_acceleration(x, dr, F.plate_radius[b], F.gravity[b])
-    v = coriolis_step(v + dt * a, dr.w, dt)
-    x = x + dt * v
-    F.v[b, i] = v
+    x = F.x[b, i]
+    u = to_non_rotating(F.v[b, i], x, dr.w)
+    a = F.f[b, i] / F.m[b, i] + translation_acceleration(dr, F.plate_radius[b]) - ti.Vector([0.0, 0.0, F.gravity[b]])
+    u += dt * a
+    x = turn_basis(x + dt * u, dr)
+    u = turn_basis(u, dr)
     F.x[b, i] = x
-    F.s[b, i] = spin_step(F.s[b, i] + dt * F.inv_i[b, i] * F.tau[b, i], dr.w, dt)
+    F.v[b, i] = from_non_rotating(u, x, dr.w_next)
+    F.s[b, i] = turn_basis(F.s[b, i] + dt * F.inv_i[b, i] * F.tau[b, i], dr)
+    F.drive_work[b, i] += F.drive_step[b, i]
+    F.dissipated[b, i] += F.diss_step[b, i]
     if moved_too_far(F, b, i):
         F.rebuild[b] = 1
     check_ball(F, b, i, x)

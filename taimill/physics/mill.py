@@ -151,7 +151,7 @@ def write_mill(F, b: int, spec: MillSpec):
         arr = field.to_numpy()
         arr[b] = 0.0
         field.from_numpy(arr)
-    for field in (F.drive_work, F.dissipated, F.elastic):
+    for field in (F.drive_work, F.dissipated, F.elastic, F.drive_step, F.diss_step):
         arr = field.to_numpy()
         arr[b] = 0.0
         field.from_numpy(arr)

@@ -89,6 +89,8 @@ class Fields:
         self.s = ti.field(vec3, (B, N))  #: absolute spin in jar-frame components, rad/s
         self.f = ti.field(vec3, (B, N))  #: contact force of this step, N
         self.tau = ti.field(vec3, (B, N))  #: contact torque of this step, N m
+        self.drive_step = ti.field(f64, (B, N))  #: J, walls' work on this ball in this step
+        self.diss_step = ti.field(f64, (B, N))  #: J, dissipated in its contacts this step
         self.drive_work = ti.field(f64, (B, N))  #: J, walls' work on this ball
         self.dissipated = ti.field(f64, (B, N))  #: J, in contacts this ball owns
         self.elastic = ti.field(f64, (B, N))  #: J, stored now in contacts this ball owns

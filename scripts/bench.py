@@ -1,0 +1,434 @@
+#!/usr/bin/env python
+"""Performance of the taimill engine (SPEC §10).
+
+Every measurement runs in a fresh interpreter (this script re-run with a hidden
+--worker argument), so each gets its own `ti.init` with the requested thread count
+and its own peak resident memory (getrusage ru_maxrss). Timed parts exclude process
+start, ti.init, kernel compilation, ball placement and the first neighbour-list
+build; time is time.perf_counter(), CPU time time.process_time() (all threads).
+
+1. Reference case: presets/p4-cy-steel.toml (CY jar, 12 steel balls, steel-steel,
+   Ω = 200 rpm, K = -2.6, automatic dt) through the public path
+   `simulation.run(preset, NullSink(), duration=D)`, D = 24 s (3 s with --quick,
+   the 24 s wall time then extrapolated). A 0.05 s run in the same process first
+   compiles and caches the engine. Rows: one thread; all threads; a Runner with the
+   spatial hash forced on (the GRID_ABOVE choice); a fused Runner over two copies
+   of the mill (B = 2) on all threads, which should put the mills on two cores.
+2. Scaling with the number of balls: N = 12 ... 100 000 (10 000 with --quick) of the
+   preset's balls in a cylindrical jar, height = radius, sized so that the balls
+   fill FILL of the volume their centres can reach (N = 12: the CY jar), default
+   Runner mode selection, all threads. The first WINDOW_STEPS steps after placement
+   (balls falling from their start positions: few contacts, no list rebuilds) are
+   timed in launches of about CHUNK_SECONDS, each followed by a drain as in
+   Runner.launch, and the window is repeated from a fresh placement until the
+   point has TARGET seconds of timing, so every N is timed in the same simulated
+   phase. Extra rows force the other launch mode on each side of PARALLEL_ABOVE
+   and (full run) time N = 1000 after SETTLE_SECONDS of simulated settling, when
+   contacts dominate. The log-log slope of cost per step against N over the
+   default-mode points with N >= 1000 tests the O(N) claim (1 = linear).
+
+The machine may be shared: cpu/wall, CPU seconds per wall second of the timed part,
+shows how many cores a measurement actually got.
+
+    scripts/bench.py [--quick] [--only reference|scaling] [--json FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.metadata
+import json
+import math
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+PRESET = ROOT / "presets" / "p4-cy-steel.toml"
+FULL_DURATION = 24.0  # s simulated, the reference run of SPEC §10
+QUICK_DURATION = 3.0  # s simulated, --quick
+COMPILE_DURATION = 0.05  # s simulated, the untimed run that compiles the engine
+SWEEP_POINTS = 21  # K sweep of SPEC §10
+SCALING_N = (12, 100, 1000, 10_000, 100_000)
+QUICK_MAX_N = 10_000
+BALL_RADIUS_MM = 6.0  # the preset's balls
+FILL = 0.30  # ball volume / volume the ball centres can reach, scaling jars
+WINDOW_STEPS = 20_000  # steps timed from one placement (≈ 16-19 ms simulated)
+CHUNK_SECONDS = 0.25  # wall seconds per launch in the scaling loop
+TARGET = {False: 3.0, True: 1.0}  # timed wall seconds per scaling point: full, quick
+SETTLE_SECONDS = 0.1  # simulated, before the "settled" row
+KIB_PER_BALL = 30  # peak RSS per ball, measured at 100 000 balls in parallel mode
+WORKER_TIMEOUT = 300  # s per subprocess, set-up and compilation included
+MARKER = "BENCH-RESULT "
+
+
+# ---------------------------------------------------------------- worker side
+def start_taichi(threads: int | None) -> int:
+    """ti.init through taimill; returns the number of CPU threads Taichi may use."""
+    import taichi as ti
+
+    from taimill.physics.simulation import init_taichi
+
+    init_taichi(threads)
+    return ti.lang.impl.current_cfg().cpu_max_num_threads
+
+
+def clocks() -> tuple[float, float]:
+    return time.perf_counter(), time.process_time()
+
+
+def peak_rss_mib() -> float:
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB on Linux
+
+
+def work_reference(task: dict) -> dict:
+    """The reference preset (`copies` mills), timed after a short compiling run."""
+    from taimill.params import load_preset
+    from taimill.physics.mill import from_preset
+    from taimill.physics.simulation import Runner, run
+    from taimill.sinks import NullSink
+
+    threads = start_taichi(task["threads"])
+    preset = load_preset(PRESET)
+    copies = task["copies"]
+
+    def simulate(duration: float) -> int:
+        if task["public"]:
+            return run(preset, NullSink(), duration=duration)["steps"]
+        runner = Runner([from_preset(preset, duration)] * copies, use_grid=task["use_grid"])
+        runner.run([NullSink()] * copies)
+        return int(runner.engine.F.step[0])
+
+    simulate(COMPILE_DURATION)
+    w0, c0 = clocks()
+    steps = simulate(task["duration"])
+    w1, c1 = clocks()
+    return dict(threads=threads, balls=preset.balls.count, dt=preset.dt, steps=steps,
+                wall=w1 - w0, cpu=c1 - c0, rss_mib=peak_rss_mib())
+
+
+def advance(engine, steps: int, chunk: int | None = None, budget: float = math.inf):
+    """Advance mill 0 by `steps` steps, at most `chunk` per launch, draining the
+    output buffers after every launch as Runner.launch does; stops early once
+    `budget` wall seconds have passed. Returns (wall s, CPU s, steps done)."""
+    from taimill.errors import SimulationUnstable
+    from taimill.physics import state as S
+    from taimill.physics.simulation import status_message
+
+    F = engine.F
+    start, done = int(F.step[0]), 0
+    w0, c0 = clocks()
+    while done < steps and time.perf_counter() - w0 < budget:
+        engine.advance(min(chunk or steps, steps - done))
+        for b in range(engine.B):
+            engine.drain(b)
+        code, now = int(F.status[0]), int(F.step[0]) - start
+        if code != S.OK:
+            raise SimulationUnstable(status_message(code, int(F.bad_ball[0]), (start + now) * F.dt[0], F.dt[0]))
+        if now == done:
+            raise RuntimeError(f"the engine stopped advancing at step {start + now}")
+        done = now
+    w1, c1 = clocks()
+    return w1 - w0, c1 - c0, done
+
+
+def compile_event_export(engine):
+    """drain() compiles its event export at the first event, which may fall inside
+    a timed window: compile it now."""
+    import numpy as np
+
+    from taimill.physics import state as S
+    from taimill.physics.engine import export_events
+
+    export_events(engine.F, 0, 0, np.zeros((1, S.NCOL)))
+
+
+def launch_steps(engine) -> int:
+    """Steps per launch for launches of about CHUNK_SECONDS, from trial launches of
+    doubling length."""
+    k = 1
+    while True:
+        wall, _, done = advance(engine, k)
+        if wall > 0.05 or k >= 1 << 20:
+            return max(1, int(CHUNK_SECONDS * done / wall))
+        k *= 2
+
+
+def work_scaling(task: dict) -> dict:
+    """Cost per step of one mill of N balls: windows of steps from a fresh placement
+    (or from a settled bed) until task["seconds"] of wall time are timed."""
+    from taimill.params import load_preset
+    from taimill.physics.mill import from_preset
+    from taimill.physics.simulation import Runner
+
+    threads = start_taichi(task["threads"])
+    overrides = {"jar": task["jar"], "balls.count": task["n"]} if task["jar"] else None
+    spec = from_preset(load_preset(PRESET, overrides))  # the 24 s target is never reached
+    mode = dict(mode=task["mode"], use_grid=task["use_grid"])
+    runner = Runner([spec], **mode)
+    advance(runner.engine, 1)  # compiles the step kernels, builds the neighbour lists
+    compile_event_export(runner.engine)
+    chunk = launch_steps(runner.engine)
+    settle = round(task["settle"] / spec.dt)
+    advance(runner.engine, settle, chunk)
+    wall = cpu = 0.0
+    steps = windows = 0
+    first = last = None
+    while wall < task["seconds"]:
+        if not settle:
+            runner = Runner([spec], **mode)
+            advance(runner.engine, 1)
+        begin = int(runner.engine.F.step[0])
+        w, c, s = advance(runner.engine, WINDOW_STEPS, chunk, task["seconds"] - wall)
+        wall, cpu, steps, windows = wall + w, cpu + c, steps + s, windows + 1
+        first = begin if first is None else min(first, begin)
+        last = max(last or 0, begin + s)
+    return dict(threads=threads, mode=runner.engine.mode, grid=runner.engine.use_grid, dt=spec.dt,
+                steps=steps, windows=windows, wall=wall, cpu=cpu, sim_from=first * spec.dt,
+                sim_to=last * spec.dt, rss_mib=peak_rss_mib())
+
+
+WORKERS = {"reference": work_reference, "scaling": work_scaling}
+
+
+def worker_main(task_json: str):
+    task = json.loads(task_json)
+    result = WORKERS[task.pop("kind")](task)
+    print(MARKER + json.dumps(result), flush=True)
+
+
+# ---------------------------------------------------------------- parent side
+def measure(task: dict) -> dict:
+    """Run one measurement in a fresh interpreter: its result, or {"error": why}."""
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", json.dumps(task)]
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=WORKER_TIMEOUT, cwd=ROOT)
+    except subprocess.TimeoutExpired:
+        return {"error": f"timed out after {WORKER_TIMEOUT} s"}
+    for line in proc.stdout.splitlines():
+        if line.startswith(MARKER):
+            return json.loads(line[len(MARKER):])
+    if proc.returncode < 0:
+        oom = " (out of memory?)" if proc.returncode == -9 else ""
+        return {"error": f"worker killed by signal {-proc.returncode}{oom}"}
+    lines = proc.stderr.strip().splitlines()
+    return {"error": lines[-1] if lines else f"worker exit status {proc.returncode}"}
+
+
+def meminfo_mib(key: str) -> float:
+    with open("/proc/meminfo") as f:
+        for line in f:
+            if line.startswith(key + ":"):
+                return int(line.split()[1]) / 1024
+    return math.nan
+
+
+def machine() -> dict:
+    cpu = platform.processor()
+    if not cpu and os.path.exists("/proc/cpuinfo"):
+        cpu = next((ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo") if ln.startswith("model name")), "")
+    return dict(
+        cpus=os.cpu_count(), processor=cpu or "unknown", machine=platform.machine(), platform=platform.platform(),
+        python=platform.python_version(), taichi=importlib.metadata.version("taichi"),
+        numpy=importlib.metadata.version("numpy"), mem_total_mib=meminfo_mib("MemTotal"),
+        mem_available_mib=meminfo_mib("MemAvailable"), load_start=os.getloadavg(),
+    )
+
+
+def print_machine(m: dict):
+    print(f"taimill benchmark, {time.strftime('%Y-%m-%d %H:%M:%S')}")
+    print(f"machine:  {m['cpus']} CPUs (os.cpu_count), {m['processor']}, {m['machine']}, {m['platform']}")
+    print(f"memory:   {m['mem_total_mib'] / 1024:.1f} GiB, {m['mem_available_mib'] / 1024:.1f} GiB available")
+    print(f"software: Python {m['python']}, taichi {m['taichi']}, numpy {m['numpy']}")
+    print("load:     %.2f %.2f %.2f (1, 5, 15 min averages at start)" % m["load_start"])
+
+
+def si(x: float) -> str:
+    for unit, scale in (("G", 1e9), ("M", 1e6), ("k", 1e3)):
+        if abs(x) >= scale:
+            return f"{x / scale:.2f} {unit}"
+    return f"{x:.3g}"
+
+
+# ---- 1. reference case
+REFERENCE_ROWS = (
+    ("run(), one thread", dict(threads=1, public=True, copies=1, use_grid=None)),
+    ("run(), all threads", dict(threads=None, public=True, copies=1, use_grid=None)),
+    ("Runner, spatial hash on, one thread", dict(threads=1, public=False, copies=1, use_grid=True)),
+    ("Runner, B = 2 fused, all threads", dict(threads=None, public=False, copies=2, use_grid=None)),
+)
+
+
+def reference_metrics(r: dict, copies: int, duration: float) -> dict:
+    """Rates per mill-second and per mill-step; wall time of 24 s of every mill."""
+    sim = r["steps"] * r["dt"]
+    mill_steps = copies * r["steps"]
+    return dict(
+        mills=copies, sim_seconds=sim, mill_seconds_per_wall_second=copies * sim / r["wall"],
+        us_per_mill_step=r["wall"] / mill_steps * 1e6, ball_steps_per_second=mill_steps * r["balls"] / r["wall"],
+        wall_for_24s=r["wall"] * FULL_DURATION / sim, wall_for_24s_measured=duration == FULL_DURATION,
+        cpu_per_wall=r["cpu"] / r["wall"],
+    )
+
+
+def reference_section(duration: float) -> tuple[list[dict], float | None]:
+    print(f"\n1. Reference case: {PRESET.relative_to(ROOT)}, {duration:g} s simulated per run, compile excluded")
+    print(f"  {'':37} {'thr':>3} {'mills':>5} {'mill-s/wall-s':>13} {'µs/step':>8} {'ball-steps/s':>12}"
+          f" {'wall for 24 s':>21} {'cpu/wall':>8} {'RSS MiB':>7}")
+    rows = []
+    for label, kw in REFERENCE_ROWS:
+        r = measure(dict(kind="reference", duration=duration, **kw))
+        row = dict(label=label, request=kw, **r)
+        rows.append(row)
+        if "error" in r:
+            print(f"  {label:37} failed: {r['error']}")
+            continue
+        row.update(reference_metrics(r, kw["copies"], duration))
+        how = "measured" if row["wall_for_24s_measured"] else "extrapolated"
+        print(f"  {label:37} {r['threads']:>3} {kw['copies']:>5} {row['mill_seconds_per_wall_second']:>13.2f}"
+              f" {row['us_per_mill_step']:>8.3f} {si(row['ball_steps_per_second']):>12}"
+              f" {row['wall_for_24s']:>7.1f} s {how:>12} {row['cpu_per_wall']:>8.2f} {r['rss_mib']:>7.0f}", flush=True)
+    ok = [r for r in rows if "error" not in r]
+    if ok:
+        print(f"  dt = {ok[0]['dt'] * 1e6:.4f} µs (automatic); µs/step is per mill-step")
+    batch = next((r for r in ok if r["mills"] == 2), None)
+    sweep = None
+    if batch:
+        sweep = SWEEP_POINTS * FULL_DURATION / batch["mill_seconds_per_wall_second"]
+        print(f"  a {SWEEP_POINTS}-point K sweep of {FULL_DURATION:g} s runs at the B = 2 rate would take ≈ {sweep / 60:.1f} min"
+              " (estimate: other K values change the dynamics and so the cost)")
+    return rows, sweep
+
+
+# ---- 2. scaling with the number of balls
+def jar_radius_mm(n: int) -> float:
+    """R (mm) of the jar with height R in which n balls fill FILL of the volume their
+    centres can reach, π (R - r)² (R - 2r); bisection (the volume grows with R)."""
+    r = BALL_RADIUS_MM
+    need = n * 4.0 / 3.0 * math.pi * r**3 / FILL
+    lo, hi = 2.0 * r, 1e4
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if math.pi * (mid - r) ** 2 * (mid - 2 * r) < need else (lo, mid)
+    return hi
+
+
+def write_jar(directory: Path, n: int) -> tuple[str, float, float]:
+    """A cylindrical jar TOML for n balls: (path, radius mm, ball volume / jar volume)."""
+    R = jar_radius_mm(n)
+    path = directory / f"bench{n}.toml"
+    path.write_text(f'description = "bench.py: cylinder for {n} balls"\nheight_mm = {R:.3f}\n'
+                    f'wall_material = "aisi-304"\n\n[[profile]]\ntype = "circle"\nradius_mm = {R:.3f}\n')
+    return str(path), R, n * 4.0 / 3.0 * BALL_RADIUS_MM**3 / (R**2 * R)
+
+
+def scaling_rows(quick: bool) -> list[dict]:
+    rows = [dict(label=f"{n}", n=n, mode=None, use_grid=None, settle=0.0)
+            for n in SCALING_N if not quick or n <= QUICK_MAX_N]
+    rows += [dict(label="1000, parallel forced", n=1000, mode="parallel", use_grid=True, settle=0.0),
+             dict(label="10000, fused forced", n=10_000, mode="fused", use_grid=True, settle=0.0)]
+    if not quick:
+        rows.append(dict(label=f"1000, settled {SETTLE_SECONDS:g} s", n=1000, mode=None, use_grid=None,
+                         settle=SETTLE_SECONDS))
+    return rows
+
+
+def scaling_point(row: dict, jar_dir: Path, seconds: float) -> dict:
+    n = row["n"]
+    if n == 12:
+        jar, R, fill = None, 32.5, 12 * 4.0 / 3.0 * BALL_RADIUS_MM**3 / (32.5**2 * 24.1)  # jars/CY.toml
+    else:
+        jar, R, fill = write_jar(jar_dir, n)
+    row.update(jar_radius_mm=R, fill=fill)
+    need = n * KIB_PER_BALL / 1024
+    available = meminfo_mib("MemAvailable")
+    if need > 0.8 * available:
+        row["error"] = f"skipped: needs ≈ {need:.0f} MiB, {available:.0f} MiB available"
+        return row
+    r = measure(dict(kind="scaling", n=n, jar=jar, mode=row["mode"], use_grid=row["use_grid"],
+                     settle=row["settle"], threads=None, seconds=seconds))
+    row.update(r)
+    if "error" not in r:
+        row.update(us_per_step=r["wall"] / r["steps"] * 1e6, ns_per_ball_step=r["wall"] / (r["steps"] * n) * 1e9,
+                   ball_steps_per_second=r["steps"] * n / r["wall"], cpu_per_wall=r["cpu"] / r["wall"])
+    return row
+
+
+def loglog_slope(points: list[tuple[float, float]]) -> float | None:
+    if len(points) < 2:
+        return None
+    xs, ys = zip(*((math.log(x), math.log(y)) for x, y in points))
+    mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
+    return sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
+
+
+def scaling_section(quick: bool) -> tuple[list[dict], float | None]:
+    seconds = TARGET[quick]
+    print(f"\n2. Scaling with the number of balls: first ≤ {WINDOW_STEPS} steps after placement,"
+          f" {seconds:g} s timed per point, all threads")
+    print(f"  {'N':26} {'mode':>8} {'grid':>4} {'thr':>3} {'R mm':>5} {'fill':>4} {'dt µs':>6} {'steps':>7}"
+          f" {'sim ms':>11} {'µs/step':>9} {'ns/ball-step':>12} {'ball-steps/s':>12} {'cpu/wall':>8} {'RSS MiB':>7}")
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="taimill-bench-") as tmp:
+        for row in scaling_rows(quick):
+            rows.append(scaling_point(row, Path(tmp), seconds))
+            print_scaling_row(row)
+    fit = [(r["n"], r["us_per_step"]) for r in rows if r["mode"] is None and not r["settle"]
+           and r["n"] >= 1000 and "error" not in r]
+    slope = loglog_slope(fit)
+    if slope is None:
+        print("  too few points with N ≥ 1000 for a slope")
+    else:
+        print(f"  cost per step ∝ N^{slope:.2f} over N = {', '.join(str(n) for n, _ in fit)}"
+              " (default modes; 1 = O(N))")
+    return rows, slope
+
+
+def print_scaling_row(r: dict):
+    if "error" in r:
+        print(f"  {r['label']:26} {r['error']}", flush=True)
+        return
+    window = f"{r['sim_from'] * 1e3:.1f}-{r['sim_to'] * 1e3:.1f}"
+    print(f"  {r['label']:26} {r['mode']:>8} {'on' if r['grid'] else 'off':>4} {r['threads']:>3}"
+          f" {r['jar_radius_mm']:>5.0f} {r['fill']:>4.0%} {r['dt'] * 1e6:>6.3f} {r['steps']:>7}"
+          f" {window:>11} {r['us_per_step']:>9.2f} {r['ns_per_ball_step']:>12.1f}"
+          f" {si(r['ball_steps_per_second']):>12} {r['cpu_per_wall']:>8.2f} {r['rss_mib']:>7.0f}", flush=True)
+
+
+# ---------------------------------------------------------------- main
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="short run for CI (< 2 min)")
+    ap.add_argument("--only", choices=("reference", "scaling"), help="run one section")
+    ap.add_argument("--json", type=Path, metavar="FILE", help="write every number to FILE")
+    ap.add_argument("--worker", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.worker:
+        worker_main(args.worker)
+        return
+    t0 = time.perf_counter()
+    report = dict(machine=machine(), quick=args.quick)
+    print_machine(report["machine"])
+    if args.only in (None, "reference"):
+        duration = QUICK_DURATION if args.quick else FULL_DURATION
+        report["reference_duration"] = duration
+        report["reference"], report["sweep_estimate_seconds"] = reference_section(duration)
+    if args.only in (None, "scaling"):
+        report["scaling"], report["scaling_slope"] = scaling_section(args.quick)
+    report["machine"]["load_end"] = os.getloadavg()
+    report["total_wall_seconds"] = time.perf_counter() - t0
+    print("\nload: %.2f %.2f %.2f at the end;" % report["machine"]["load_end"],
+          f"benchmark took {report['total_wall_seconds']:.0f} s")
+    if args.json:
+        args.json.write_text(json.dumps(report, indent=2) + "\n")
+        print(f"numbers written to {args.json}")
+
+
+if __name__ == "__main__":
+    main()

@@ -45,7 +45,7 @@ def _overrides(a) -> dict:
     return {
         "ratio": a.ratio, "jar_rpm": a.jar_rpm, "plate_rpm": a.plate_rpm, "pair": a.pair,
         "jar": a.jar, "balls.count": a.balls, "seed": a.seed, "duration": a.duration, "dt": dt,
-        "law": a.law,
+        "law": a.law, "analysis_start": a.analysis_start,
     }
 
 
@@ -58,7 +58,8 @@ def _add_overrides(p):
     g.add_argument("--jar", help="jar name (jars/NAME.toml) or path")
     g.add_argument("--balls", type=int, help="number of balls")
     g.add_argument("--seed", type=int)
-    g.add_argument("--duration", type=float, help="simulated seconds")
+    g.add_argument("--duration", type=float, help="simulated seconds (a preset's analysis start that no longer fits becomes duration/6)")
+    g.add_argument("--analysis-start", type=float, help="start of the analysis window (s)")
     g.add_argument("--dt", help="time step in s, or 'auto'")
     g.add_argument("--law", help="normal contact law (adams-impact, kelvin-voigt, hertz-damper, hunt-crossley, hertz-mindlin)")
 

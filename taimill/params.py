@@ -144,11 +144,16 @@ class _Table:
     """A TOML table being read: remembers the file and key path for error messages,
     and reports keys nobody asked for (typos must not pass silently)."""
 
-    def __init__(self, data: dict, source: str, prefix: str = ""):
+    def __init__(self, data: dict, source: str, prefix: str = "", overridden=frozenset()):
         self.data, self.source, self.prefix, self.used = data, source, prefix, set()
+        self.overridden = overridden
 
     def key(self, k):
         return f"{self.prefix}{k}"
+
+    def where(self, k):
+        """The file, or the command line if the value was given there."""
+        return "command line" if self.key(k) in self.overridden else self.source
 
     def has(self, k):
         return k in self.data
@@ -160,25 +165,26 @@ class _Table:
                 raise ConfigError(self.source, self.key(k), None, "missing (required key)")
             return default
         v = self.data[k]
+        src = self.where(k)
         if allowed is not None:
             if v not in allowed:
-                raise ConfigError(self.source, self.key(k), v, f"must be one of {', '.join(map(str, allowed))}")
+                raise ConfigError(src, self.key(k), v, f"must be one of {', '.join(map(str, allowed))}")
             return v
         if kind is str:
             if not isinstance(v, str):
-                raise ConfigError(self.source, self.key(k), v, "must be a string")
+                raise ConfigError(src, self.key(k), v, "must be a string")
             return v
         if kind is int and (isinstance(v, bool) or not isinstance(v, int)):
-            raise ConfigError(self.source, self.key(k), v, "must be an integer")
+            raise ConfigError(src, self.key(k), v, "must be an integer")
         if kind is float and (isinstance(v, bool) or not isinstance(v, (int, float))):
-            raise ConfigError(self.source, self.key(k), v, "must be a number")
+            raise ConfigError(src, self.key(k), v, "must be a number")
         if isinstance(v, float) and not math.isfinite(v):
-            raise ConfigError(self.source, self.key(k), v, "must be finite")
+            raise ConfigError(src, self.key(k), v, "must be finite")
         bad_lo = lo is not None and (v <= lo if lo_open else v < lo)
         if bad_lo or (hi is not None and v > hi):
             lo_s = "-inf" if lo is None else f"{lo:g}"
             hi_s = "inf" if hi is None else f"{hi:g}"
-            raise ConfigError(self.source, self.key(k), v, f"allowed range {'(' if lo_open else '['}{lo_s}, {hi_s}]")
+            raise ConfigError(src, self.key(k), v, f"allowed range {'(' if lo_open else '['}{lo_s}, {hi_s}]")
         return kind(v)
 
     def table(self, k, required=True):
@@ -188,7 +194,7 @@ class _Table:
             return None
         if not isinstance(v, dict):
             raise ConfigError(self.source, self.key(k), v, "must be a table")
-        return _Table(v, self.source, f"{self.prefix}{k}.")
+        return _Table(v, self.source, f"{self.prefix}{k}.", self.overridden)
 
     def done(self):
         extra = sorted(set(self.data) - self.used)
@@ -236,12 +242,23 @@ def load_friction(name: str, source, key="pair") -> tuple[Friction, str]:
         raise ConfigError(source, key, name, f"must be one of {', '.join(db['pair'])}")
     t = _Table(db["pair"][name], MATERIALS_FILE, f"pair.{name}.")
     contact = t.get("contact", kind=str)
-    mu_s = t.get("mu_s", lo=0, hi=10)
-    mu_d = t.get("mu_d", lo=0, hi=mu_s)
-    v_s = t.get("v_s_mm_s", lo=0, lo_open=True, hi=1e4) * 1e-3
-    v_d = t.get("v_d_mm_s", lo=v_s * 1e3, lo_open=True, hi=1e5) * 1e-3
+    friction = _friction(t, name)
     t.done()
-    return Friction(name, mu_s, mu_d, v_s, v_d), contact
+    return friction, contact
+
+
+def _friction(t: "_Table", name: str, base: Friction | None = None) -> Friction:
+    """μ_s, μ_d, v_s, v_d from table t, defaulting to `base` (preset overrides)."""
+    d = base or Friction(name, ..., ..., ..., ...)
+    mu_s = t.get("mu_s", d.mu_s, lo=0, hi=10)
+    mu_d = t.get("mu_d", d.mu_d, lo=0, hi=10)
+    if mu_d > mu_s:
+        raise ConfigError(t.where("mu_d"), t.key("mu_d"), mu_d, f"dynamic friction must not exceed static mu_s = {mu_s:g}; allowed range [0, {mu_s:g}]")
+    v_s = t.get("v_s_mm_s", ... if base is None else d.v_s * 1e3, lo=0, lo_open=True, hi=1e4) * 1e-3
+    v_d = t.get("v_d_mm_s", ... if base is None else d.v_d * 1e3, lo=0, lo_open=True, hi=1e5) * 1e-3
+    if v_d <= v_s:
+        raise ConfigError(t.where("v_d_mm_s"), t.key("v_d_mm_s"), v_d * 1e3, f"must exceed v_s_mm_s = {v_s * 1e3:g}")
+    return Friction(name, mu_s, mu_d, v_s, v_d)
 
 
 # ------------------------------------------------------------------ jars
@@ -369,9 +386,10 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
         target[leaf] = value
         if key in ("ratio", "jar_rpm"):
             data.pop("jar_rpm" if key == "ratio" else "ratio", None)
-    t = _Table(data, source)
+    overridden = frozenset(k for k, v in (overrides or {}).items() if v is not None)
+    t = _Table(data, source, "", overridden)
 
-    jar = load_jar(t.get("jar", kind=str), source, path.parent)
+    jar = load_jar(t.get("jar", kind=str), t.where("jar"), path.parent)
     bt = t.table("balls")
     material = load_material(bt.get("material", kind=str), source)
     balls = Balls(
@@ -380,16 +398,20 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
         bt.get("radius_mm", lo=0, lo_open=True, hi=0.5e3 * min(jar.radius, jar.height)) * 1e-3,
     )
     bt.done()
-    _check_fill(balls, jar, source)
+    _check_fill(balls, jar, bt.where("count"))
 
     pair = t.get("pair", kind=str)
-    friction, contact = load_friction(pair, source)
+    friction, contact = load_friction(pair, t.where("pair"))
+    ft = t.table("friction", required=False)
+    if ft is not None:  # the pair's friction, tuned by the user
+        friction = _friction(ft, f"{pair} (tuned)", friction)
+        ft.done()
     law = t.get("law", None, allowed=tuple(laws_np.LAWS))
     ball_ball, ball_wall = _contact_laws(contact, law, balls, jar, source)
 
     plate_omega = t.get("plate_rpm", lo=-1000, hi=1000) * RPM
     if t.has("ratio") and t.has("jar_rpm"):
-        raise ConfigError(source, "jar_rpm", data["jar_rpm"], "give either ratio or jar_rpm, not both")
+        raise ConfigError(t.where("jar_rpm"), "jar_rpm", data["jar_rpm"], "give either ratio or jar_rpm, not both")
     if t.has("jar_rpm"):
         jar_spin = t.get("jar_rpm", lo=-3000, hi=3000) * RPM + plate_omega
     else:
@@ -397,6 +419,9 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     plate_radius = t.get("plate_radius_mm", 125.0, lo=0, hi=2000) * 1e-3
 
     duration = t.get("duration", lo=0, lo_open=True, hi=36000)
+    if "duration" in overridden and "analysis_start" not in overridden and data.get("analysis_start", 0) >= duration:
+        # a short run asked for on the command line keeps the thesis' proportion (4 of 24 s)
+        data["analysis_start"] = duration / 6.0
     analysis_start = t.get("analysis_start", 0.0, lo=0, hi=duration)
     if analysis_start >= duration:
         raise ConfigError(source, "analysis_start", analysis_start, f"must be below duration = {duration:g} s")
@@ -413,7 +438,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     else:
         dt_limit = dt_auto * laws_np.STEPS_PER_CONTACT / 10.0  # ≥ 10 steps per contact
         if isinstance(dt_raw, bool) or not isinstance(dt_raw, (int, float)) or not 0 < dt_raw <= dt_limit:
-            raise ConfigError(source, "dt", dt_raw, f"'auto' or a time step in (0, {dt_limit:.3g}] s (10 steps per contact at {v_max:.1f} m/s)")
+            raise ConfigError(t.where("dt"), "dt", dt_raw, f"'auto' or a time step in (0, {dt_limit:.3g}] s (10 steps per contact at {v_max:.1f} m/s)")
         dt, is_auto = float(dt_raw), False
 
     out = t.table("outputs", required=False)

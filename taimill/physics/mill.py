@@ -59,7 +59,8 @@ def from_preset(p: Preset, duration: float | None = None) -> MillSpec:
     x0 = p.initial_positions
     if x0 is None:
         x0 = random_placement(n, p.balls.radius, p.jar.radius, p.jar.height, p.seed, p.source)
-    steps = int(round((duration if duration is not None else p.duration) / p.dt))
+    every = max(1, int(round(1.0 / (p.trajectory_rate * p.dt))))
+    frames = max(1, int(round((duration if duration is not None else p.duration) / (every * p.dt))))
     return MillSpec(
         radius=np.full(n, p.balls.radius),
         mass=np.full(n, p.balls.mass),
@@ -76,8 +77,8 @@ def from_preset(p: Preset, duration: float | None = None) -> MillSpec:
         plate_radius=p.plate_radius,
         gravity=p.gravity,
         dt=p.dt,
-        steps=steps,
-        frame_every=max(1, int(round(1.0 / (p.trajectory_rate * p.dt)))),
+        steps=frames * every + 1,  # the last step taken is a frame step: frames at both ends
+        frame_every=every,
     )
 
 

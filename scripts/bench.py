@@ -11,9 +11,10 @@ build; time is time.perf_counter(), CPU time time.process_time() (all threads).
    Ω = 200 rpm, K = -2.6, automatic dt) through the public path
    `simulation.run(preset, NullSink(), duration=D)`, D = 24 s (3 s with --quick,
    the 24 s wall time then extrapolated). A 0.05 s run in the same process first
-   compiles and caches the engine. Rows: one thread; all threads; a Runner with the
-   spatial hash forced on (the GRID_ABOVE choice); a fused Runner over two copies
-   of the mill (B = 2) on all threads, which should put the mills on two cores.
+   compiles and caches the engine. Rows: one thread; all threads; a Runner on one
+   thread without run()'s summary sink, with all pairs (the default for 12 balls)
+   and with the spatial hash forced on (the GRID_ABOVE choice); a fused Runner over
+   two copies of the mill (B = 2) on all threads, which should use two cores.
 2. Scaling with the number of balls: N = 12 ... 100 000 (10 000 with --quick) of the
    preset's balls in a cylindrical jar, height = radius, sized so that the balls
    fill FILL of the volume their centres can reach (N = 12: the CY jar), default
@@ -27,8 +28,10 @@ build; time is time.perf_counter(), CPU time time.process_time() (all threads).
    contacts dominate. The log-log slope of cost per step against N over the
    default-mode points with N >= 1000 tests the O(N) claim (1 = linear).
 
-The machine may be shared: cpu/wall, CPU seconds per wall second of the timed part,
-shows how many cores a measurement actually got.
+The machine may be shared. Two columns show what a timed part really got: cpu/wall,
+the CPU seconds of the measuring process per wall second (the cores it used), and
+others, the busy CPU seconds of every other process per wall second (/proc/stat).
+With others near 1 on a 2-core machine, a 2-thread figure is not trustworthy.
 
     scripts/bench.py [--quick] [--only reference|scaling] [--json FILE]
 """
@@ -77,8 +80,16 @@ def start_taichi(threads: int | None) -> int:
     return ti.lang.impl.current_cfg().cpu_max_num_threads
 
 
-def clocks() -> tuple[float, float]:
-    return time.perf_counter(), time.process_time()
+def clocks() -> tuple[float, float, float]:
+    """(wall, CPU seconds of this process, busy CPU seconds of the whole machine)."""
+    with open("/proc/stat") as f:
+        ticks = [int(v) for v in f.readline().split()[1:9]]
+    busy = (sum(ticks) - ticks[3] - ticks[4]) / os.sysconf("SC_CLK_TCK")  # all but idle, iowait
+    return time.perf_counter(), time.process_time(), busy
+
+
+def since(start: tuple) -> list[float]:
+    return [b - a for a, b in zip(start, clocks())]
 
 
 def peak_rss_mib() -> float:
@@ -106,25 +117,25 @@ def work_reference(task: dict) -> dict:
         return int(runner.engine.F.step[0])
 
     simulate(COMPILE_DURATION)
-    w0, c0 = clocks()
+    start = clocks()
     steps = simulate(task["duration"])
-    w1, c1 = clocks()
+    wall, cpu, busy = since(start)
     return dict(threads=threads, balls=preset.balls.count, dt=preset.dt, steps=steps,
-                wall=w1 - w0, cpu=c1 - c0, rss_mib=peak_rss_mib())
+                wall=wall, cpu=cpu, busy=busy, rss_mib=peak_rss_mib())
 
 
 def advance(engine, steps: int, chunk: int | None = None, budget: float = math.inf):
     """Advance mill 0 by `steps` steps, at most `chunk` per launch, draining the
     output buffers after every launch as Runner.launch does; stops early once
-    `budget` wall seconds have passed. Returns (wall s, CPU s, steps done)."""
+    `budget` wall seconds have passed. Returns ([wall, cpu, busy] s, steps done)."""
     from taimill.errors import SimulationUnstable
     from taimill.physics import state as S
     from taimill.physics.simulation import status_message
 
     F = engine.F
     start, done = int(F.step[0]), 0
-    w0, c0 = clocks()
-    while done < steps and time.perf_counter() - w0 < budget:
+    t0 = clocks()
+    while done < steps and time.perf_counter() - t0[0] < budget:
         engine.advance(min(chunk or steps, steps - done))
         for b in range(engine.B):
             engine.drain(b)
@@ -134,8 +145,7 @@ def advance(engine, steps: int, chunk: int | None = None, budget: float = math.i
         if now == done:
             raise RuntimeError(f"the engine stopped advancing at step {start + now}")
         done = now
-    w1, c1 = clocks()
-    return w1 - w0, c1 - c0, done
+    return since(t0), done
 
 
 def compile_event_export(engine):
@@ -154,7 +164,7 @@ def launch_steps(engine) -> int:
     doubling length."""
     k = 1
     while True:
-        wall, _, done = advance(engine, k)
+        (wall, _, _), done = advance(engine, k)
         if wall > 0.05 or k >= 1 << 20:
             return max(1, int(CHUNK_SECONDS * done / wall))
         k *= 2
@@ -177,20 +187,22 @@ def work_scaling(task: dict) -> dict:
     chunk = launch_steps(runner.engine)
     settle = round(task["settle"] / spec.dt)
     advance(runner.engine, settle, chunk)
-    wall = cpu = 0.0
+    timed = [0.0, 0.0, 0.0]  # wall, cpu, busy
     steps = windows = 0
     first = last = None
-    while wall < task["seconds"]:
+    while timed[0] < task["seconds"]:
         if not settle:
             runner = Runner([spec], **mode)
             advance(runner.engine, 1)
         begin = int(runner.engine.F.step[0])
-        w, c, s = advance(runner.engine, WINDOW_STEPS, chunk, task["seconds"] - wall)
-        wall, cpu, steps, windows = wall + w, cpu + c, steps + s, windows + 1
+        spent, done = advance(runner.engine, WINDOW_STEPS, chunk, task["seconds"] - timed[0])
+        timed = [a + b for a, b in zip(timed, spent)]
+        steps, windows = steps + done, windows + 1
         first = begin if first is None else min(first, begin)
-        last = max(last or 0, begin + s)
+        last = max(last or 0, begin + done)
+    wall, cpu, busy = timed
     return dict(threads=threads, mode=runner.engine.mode, grid=runner.engine.use_grid, dt=spec.dt,
-                steps=steps, windows=windows, wall=wall, cpu=cpu, sim_from=first * spec.dt,
+                steps=steps, windows=windows, wall=wall, cpu=cpu, busy=busy, sim_from=first * spec.dt,
                 sim_to=last * spec.dt, rss_mib=peak_rss_mib())
 
 
@@ -260,9 +272,15 @@ def si(x: float) -> str:
 REFERENCE_ROWS = (
     ("run(), one thread", dict(threads=1, public=True, copies=1, use_grid=None)),
     ("run(), all threads", dict(threads=None, public=True, copies=1, use_grid=None)),
+    ("Runner, all pairs, one thread", dict(threads=1, public=False, copies=1, use_grid=None)),
     ("Runner, spatial hash on, one thread", dict(threads=1, public=False, copies=1, use_grid=True)),
     ("Runner, B = 2 fused, all threads", dict(threads=None, public=False, copies=2, use_grid=None)),
 )
+
+
+def load_metrics(r: dict) -> dict:
+    """Cores this measurement used, and cores other processes used meanwhile."""
+    return dict(cpu_per_wall=r["cpu"] / r["wall"], others=(r["busy"] - r["cpu"]) / r["wall"])
 
 
 def reference_metrics(r: dict, copies: int, duration: float) -> dict:
@@ -273,14 +291,14 @@ def reference_metrics(r: dict, copies: int, duration: float) -> dict:
         mills=copies, sim_seconds=sim, mill_seconds_per_wall_second=copies * sim / r["wall"],
         us_per_mill_step=r["wall"] / mill_steps * 1e6, ball_steps_per_second=mill_steps * r["balls"] / r["wall"],
         wall_for_24s=r["wall"] * FULL_DURATION / sim, wall_for_24s_measured=duration == FULL_DURATION,
-        cpu_per_wall=r["cpu"] / r["wall"],
+        **load_metrics(r),
     )
 
 
 def reference_section(duration: float) -> tuple[list[dict], float | None]:
     print(f"\n1. Reference case: {PRESET.relative_to(ROOT)}, {duration:g} s simulated per run, compile excluded")
     print(f"  {'':37} {'thr':>3} {'mills':>5} {'mill-s/wall-s':>13} {'µs/step':>8} {'ball-steps/s':>12}"
-          f" {'wall for 24 s':>21} {'cpu/wall':>8} {'RSS MiB':>7}")
+          f" {'wall for 24 s':>21} {'cpu/wall':>8} {'others':>6} {'RSS MiB':>7}")
     rows = []
     for label, kw in REFERENCE_ROWS:
         r = measure(dict(kind="reference", duration=duration, **kw))
@@ -293,7 +311,8 @@ def reference_section(duration: float) -> tuple[list[dict], float | None]:
         how = "measured" if row["wall_for_24s_measured"] else "extrapolated"
         print(f"  {label:37} {r['threads']:>3} {kw['copies']:>5} {row['mill_seconds_per_wall_second']:>13.2f}"
               f" {row['us_per_mill_step']:>8.3f} {si(row['ball_steps_per_second']):>12}"
-              f" {row['wall_for_24s']:>7.1f} s {how:>12} {row['cpu_per_wall']:>8.2f} {r['rss_mib']:>7.0f}", flush=True)
+              f" {row['wall_for_24s']:>7.1f} s {how:>12} {row['cpu_per_wall']:>8.2f} {row['others']:>6.2f}"
+              f" {r['rss_mib']:>7.0f}", flush=True)
     ok = [r for r in rows if "error" not in r]
     if ok:
         print(f"  dt = {ok[0]['dt'] * 1e6:.4f} µs (automatic); µs/step is per mill-step")
@@ -329,13 +348,14 @@ def write_jar(directory: Path, n: int) -> tuple[str, float, float]:
 
 
 def scaling_rows(quick: bool) -> list[dict]:
-    rows = [dict(label=f"{n}", n=n, mode=None, use_grid=None, settle=0.0)
-            for n in SCALING_N if not quick or n <= QUICK_MAX_N]
-    rows += [dict(label="1000, parallel forced", n=1000, mode="parallel", use_grid=True, settle=0.0),
-             dict(label="10000, fused forced", n=10_000, mode="fused", use_grid=True, settle=0.0)]
+    """Labelled requests: the default mode for every N, then the extra rows."""
+    def row(label, n, mode=None, use_grid=None, settle=0.0):
+        return dict(label=label, n=n, request=dict(mode=mode, use_grid=use_grid, settle=settle))
+
+    rows = [row(str(n), n) for n in SCALING_N if not quick or n <= QUICK_MAX_N]
+    rows += [row("1000, parallel forced", 1000, "parallel", True), row("10000, fused forced", 10_000, "fused", True)]
     if not quick:
-        rows.append(dict(label=f"1000, settled {SETTLE_SECONDS:g} s", n=1000, mode=None, use_grid=None,
-                         settle=SETTLE_SECONDS))
+        rows.append(row(f"1000, settled {SETTLE_SECONDS:g} s", 1000, settle=SETTLE_SECONDS))
     return rows
 
 
@@ -351,12 +371,11 @@ def scaling_point(row: dict, jar_dir: Path, seconds: float) -> dict:
     if need > 0.8 * available:
         row["error"] = f"skipped: needs ≈ {need:.0f} MiB, {available:.0f} MiB available"
         return row
-    r = measure(dict(kind="scaling", n=n, jar=jar, mode=row["mode"], use_grid=row["use_grid"],
-                     settle=row["settle"], threads=None, seconds=seconds))
+    r = measure(dict(kind="scaling", n=n, jar=jar, threads=None, seconds=seconds, **row["request"]))
     row.update(r)
     if "error" not in r:
         row.update(us_per_step=r["wall"] / r["steps"] * 1e6, ns_per_ball_step=r["wall"] / (r["steps"] * n) * 1e9,
-                   ball_steps_per_second=r["steps"] * n / r["wall"], cpu_per_wall=r["cpu"] / r["wall"])
+                   ball_steps_per_second=r["steps"] * n / r["wall"], **load_metrics(r))
     return row
 
 
@@ -373,14 +392,15 @@ def scaling_section(quick: bool) -> tuple[list[dict], float | None]:
     print(f"\n2. Scaling with the number of balls: first ≤ {WINDOW_STEPS} steps after placement,"
           f" {seconds:g} s timed per point, all threads")
     print(f"  {'N':26} {'mode':>8} {'grid':>4} {'thr':>3} {'R mm':>5} {'fill':>4} {'dt µs':>6} {'steps':>7}"
-          f" {'sim ms':>11} {'µs/step':>9} {'ns/ball-step':>12} {'ball-steps/s':>12} {'cpu/wall':>8} {'RSS MiB':>7}")
+          f" {'sim ms':>11} {'µs/step':>9} {'ns/ball-step':>12} {'ball-steps/s':>12} {'cpu/wall':>8} {'others':>6}"
+          f" {'RSS MiB':>7}")
     rows = []
     with tempfile.TemporaryDirectory(prefix="taimill-bench-") as tmp:
         for row in scaling_rows(quick):
             rows.append(scaling_point(row, Path(tmp), seconds))
             print_scaling_row(row)
-    fit = [(r["n"], r["us_per_step"]) for r in rows if r["mode"] is None and not r["settle"]
-           and r["n"] >= 1000 and "error" not in r]
+    default = dict(mode=None, use_grid=None, settle=0.0)
+    fit = [(r["n"], r["us_per_step"]) for r in rows if r["request"] == default and r["n"] >= 1000 and "error" not in r]
     slope = loglog_slope(fit)
     if slope is None:
         print("  too few points with N ≥ 1000 for a slope")
@@ -398,7 +418,8 @@ def print_scaling_row(r: dict):
     print(f"  {r['label']:26} {r['mode']:>8} {'on' if r['grid'] else 'off':>4} {r['threads']:>3}"
           f" {r['jar_radius_mm']:>5.0f} {r['fill']:>4.0%} {r['dt'] * 1e6:>6.3f} {r['steps']:>7}"
           f" {window:>11} {r['us_per_step']:>9.2f} {r['ns_per_ball_step']:>12.1f}"
-          f" {si(r['ball_steps_per_second']):>12} {r['cpu_per_wall']:>8.2f} {r['rss_mib']:>7.0f}", flush=True)
+          f" {si(r['ball_steps_per_second']):>12} {r['cpu_per_wall']:>8.2f} {r['others']:>6.2f} {r['rss_mib']:>7.0f}",
+          flush=True)
 
 
 # ---------------------------------------------------------------- main

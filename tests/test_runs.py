@@ -87,18 +87,28 @@ def test_stored_run_equals_the_streamed_one(tmp_path):
     assert store.config["balls"]["count"] == 12 and store.config["ratio"] == pytest.approx(-2.6)
 
 
+def _mean_se_at(dt_factor, seeds, duration):
+    base = load_preset("presets/p4-cy-steel.toml")
+    vals = []
+    for seed in seeds:
+        p = load_preset("presets/p4-cy-steel.toml", {"seed": seed, "duration": duration, "analysis_start": 2.0,
+                                                     "dt": base.dt * dt_factor})
+        vals.append(run(p)["mean_se"])
+    return float(np.mean(vals))
+
+
+def test_mean_stress_energy_converges_in_dt_short():
+    # CI form of the SPEC §8 check: one seed, a 2 s window. Single 2 s windows scatter
+    # by ≈ 4 % seed to seed (6 s windows: 2 %), so the bound is 12 % (3σ); the full
+    # test below is the sharp one.
+    a, b = _mean_se_at(1.0, (1,), 4.0), _mean_se_at(0.5, (1,), 4.0)
+    assert abs(a - b) < 0.12 * a
+
+
 @pytest.mark.full
 def test_mean_stress_energy_converges_in_dt():
     # SPEC §8: halving dt changes the mean SE by less than its seed-to-seed scatter.
-    # Four seeds × 8 s (window 2-8 s) at dt and dt/2: measured difference of the means
-    # 1.4 % with a standard error of 1.1 %; bound 4 % (≈ 3 standard errors).
-    base = load_preset("presets/p4-cy-steel.toml")
-    means = {}
-    for half in (False, True):
-        vals = []
-        for seed in (1, 2, 3, 4):
-            p = load_preset("presets/p4-cy-steel.toml", {"seed": seed, "duration": 8.0, "analysis_start": 2.0,
-                                                         "dt": base.dt / 2 if half else "auto"})
-            vals.append(run(p)["mean_se"])
-        means[half] = np.mean(vals)
-    assert abs(means[True] - means[False]) < 0.04 * means[False]
+    # Four seeds × 6 s windows at dt and dt/2: the difference of the means was 0.3-1.4 %
+    # for 20-40 steps per contact, standard error 1.1 %; bound 4 % (≈ 3 standard errors).
+    a, b = _mean_se_at(1.0, (1, 2, 3, 4), 8.0), _mean_se_at(0.5, (1, 2, 3, 4), 8.0)
+    assert abs(a - b) < 0.04 * a

@@ -12,9 +12,9 @@ build; time is time.perf_counter(), CPU time time.process_time() (all threads).
    `simulation.run(preset, NullSink(), duration=D)`, D = 24 s (3 s with --quick,
    the 24 s wall time then extrapolated). A 0.05 s run in the same process first
    compiles and caches the engine. Rows: one thread; all threads; a Runner on one
-   thread without run()'s summary sink, with all pairs (the default for 12 balls)
-   and with the spatial hash forced on (the GRID_ABOVE choice); a fused Runner over
-   two copies of the mill (B = 2) on all threads, which should use two cores.
+   thread without run()'s summary sink, with neighbour lists built from all pairs
+   and from the spatial hash (the default); a fused Runner over two copies of the
+   mill (B = 2) on all threads, which should use two cores.
 2. Scaling with the number of balls: N = 12 ... 100 000 (10 000 with --quick) of the
    preset's balls in a cylindrical jar, height = radius, sized so that the balls
    fill FILL of the volume their centres can reach (N = 12: the CY jar), default
@@ -25,13 +25,15 @@ build; time is time.perf_counter(), CPU time time.process_time() (all threads).
    point has TARGET seconds of timing, so every N is timed in the same simulated
    phase. Extra rows force the other launch mode on each side of PARALLEL_ABOVE
    and (full run) time N = 1000 after SETTLE_SECONDS of simulated settling, when
-   contacts dominate. The log-log slope of cost per step against N over the
-   default-mode points with N >= 1000 tests the O(N) claim (1 = linear).
+   contacts dominate. The log-log slope of cost per step against N for N >= 1000,
+   over the default-mode points and over the fused-mode points, tests the O(N)
+   claim (1 = linear).
 
 The machine may be shared. Two columns show what a timed part really got: cpu/wall,
 the CPU seconds of the measuring process per wall second (the cores it used), and
-others, the busy CPU seconds of every other process per wall second (/proc/stat).
-With others near 1 on a 2-core machine, a 2-thread figure is not trustworthy.
+others, the busy CPU seconds of every other process per wall second (/proc/stat,
+tick-sampled: ±0.2 for bursty or short measurements). With others near 1 on a
+2-core machine, a 2-thread figure is not trustworthy.
 
     scripts/bench.py [--quick] [--only reference|scaling] [--json FILE]
 """
@@ -48,6 +50,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import tomllib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -56,7 +59,8 @@ FULL_DURATION = 24.0  # s simulated, the reference run of SPEC §10
 QUICK_DURATION = 3.0  # s simulated, --quick
 COMPILE_DURATION = 0.05  # s simulated, the untimed run that compiles the engine
 SWEEP_POINTS = 21  # K sweep of SPEC §10
-SCALING_N = (12, 100, 1000, 10_000, 100_000)
+REFERENCE_BALLS = 12  # the preset's count: that scaling point uses the preset's jar
+SCALING_N = (REFERENCE_BALLS, 100, 1000, 10_000, 100_000)
 QUICK_MAX_N = 10_000
 BALL_RADIUS_MM = 6.0  # the preset's balls
 FILL = 0.30  # ball volume / volume the ball centres can reach, scaling jars
@@ -137,8 +141,7 @@ def advance(engine, steps: int, chunk: int | None = None, budget: float = math.i
     t0 = clocks()
     while done < steps and time.perf_counter() - t0[0] < budget:
         engine.advance(min(chunk or steps, steps - done))
-        for b in range(engine.B):
-            engine.drain(b)
+        engine.drain(0)
         code, now = int(F.status[0]), int(F.step[0]) - start
         if code != S.OK:
             raise SimulationUnstable(status_message(code, int(F.bad_ball[0]), (start + now) * F.dt[0], F.dt[0]))
@@ -188,22 +191,20 @@ def work_scaling(task: dict) -> dict:
     settle = round(task["settle"] / spec.dt)
     advance(runner.engine, settle, chunk)
     timed = [0.0, 0.0, 0.0]  # wall, cpu, busy
-    steps = windows = 0
-    first = last = None
+    steps, begins, ends = 0, [], []
     while timed[0] < task["seconds"]:
         if not settle:
             runner = Runner([spec], **mode)
             advance(runner.engine, 1)
-        begin = int(runner.engine.F.step[0])
+        begins.append(int(runner.engine.F.step[0]))
         spent, done = advance(runner.engine, WINDOW_STEPS, chunk, task["seconds"] - timed[0])
         timed = [a + b for a, b in zip(timed, spent)]
-        steps, windows = steps + done, windows + 1
-        first = begin if first is None else min(first, begin)
-        last = max(last or 0, begin + done)
+        steps += done
+        ends.append(begins[-1] + done)
     wall, cpu, busy = timed
     return dict(threads=threads, mode=runner.engine.mode, grid=runner.engine.use_grid, dt=spec.dt,
-                steps=steps, windows=windows, wall=wall, cpu=cpu, busy=busy, sim_from=first * spec.dt,
-                sim_to=last * spec.dt, rss_mib=peak_rss_mib())
+                steps=steps, windows=len(begins), wall=wall, cpu=cpu, busy=busy, sim_from=min(begins) * spec.dt,
+                sim_to=max(ends) * spec.dt, rss_mib=peak_rss_mib())
 
 
 WORKERS = {"reference": work_reference, "scaling": work_scaling}
@@ -241,12 +242,16 @@ def meminfo_mib(key: str) -> float:
     return math.nan
 
 
+def cpu_model() -> str:
+    if platform.processor():
+        return platform.processor()
+    with open("/proc/cpuinfo") as f:
+        return next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), "unknown")
+
+
 def machine() -> dict:
-    cpu = platform.processor()
-    if not cpu and os.path.exists("/proc/cpuinfo"):
-        cpu = next((ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo") if ln.startswith("model name")), "")
     return dict(
-        cpus=os.cpu_count(), processor=cpu or "unknown", machine=platform.machine(), platform=platform.platform(),
+        cpus=os.cpu_count(), processor=cpu_model(), machine=platform.machine(), platform=platform.platform(),
         python=platform.python_version(), taichi=importlib.metadata.version("taichi"),
         numpy=importlib.metadata.version("numpy"), mem_total_mib=meminfo_mib("MemTotal"),
         mem_available_mib=meminfo_mib("MemAvailable"), load_start=os.getloadavg(),
@@ -270,11 +275,11 @@ def si(x: float) -> str:
 
 # ---- 1. reference case
 REFERENCE_ROWS = (
-    ("run(), one thread", dict(threads=1, public=True, copies=1, use_grid=None)),
-    ("run(), all threads", dict(threads=None, public=True, copies=1, use_grid=None)),
-    ("Runner, all pairs, one thread", dict(threads=1, public=False, copies=1, use_grid=None)),
-    ("Runner, spatial hash on, one thread", dict(threads=1, public=False, copies=1, use_grid=True)),
-    ("Runner, B = 2 fused, all threads", dict(threads=None, public=False, copies=2, use_grid=None)),
+    ("run(), one thread", dict(threads=1, public=True, copies=1, use_grid=True)),
+    ("run(), all threads", dict(threads=None, public=True, copies=1, use_grid=True)),
+    ("Runner, all pairs, one thread", dict(threads=1, public=False, copies=1, use_grid=False)),
+    ("Runner, spatial hash, one thread", dict(threads=1, public=False, copies=1, use_grid=True)),
+    ("Runner, B = 2 fused, all threads", dict(threads=None, public=False, copies=2, use_grid=True)),
 )
 
 
@@ -320,8 +325,8 @@ def reference_section(duration: float) -> tuple[list[dict], float | None]:
     sweep = None
     if batch:
         sweep = SWEEP_POINTS * FULL_DURATION / batch["mill_seconds_per_wall_second"]
-        print(f"  a {SWEEP_POINTS}-point K sweep of {FULL_DURATION:g} s runs at the B = 2 rate would take ≈ {sweep / 60:.1f} min"
-              " (estimate: other K values change the dynamics and so the cost)")
+        print(f"  a {SWEEP_POINTS}-point K sweep of {FULL_DURATION:g} s runs at the B = 2 rate would take"
+              f" ≈ {sweep / 60:.1f} min (estimate: other K values change the dynamics and so the cost)")
     return rows, sweep
 
 
@@ -338,22 +343,36 @@ def jar_radius_mm(n: int) -> float:
     return hi
 
 
+def fill_fraction(n: int, radius_mm: float, height_mm: float) -> float:
+    return n * 4.0 / 3.0 * BALL_RADIUS_MM**3 / (radius_mm**2 * height_mm)
+
+
 def write_jar(directory: Path, n: int) -> tuple[str, float, float]:
     """A cylindrical jar TOML for n balls: (path, radius mm, ball volume / jar volume)."""
     R = jar_radius_mm(n)
     path = directory / f"bench{n}.toml"
     path.write_text(f'description = "bench.py: cylinder for {n} balls"\nheight_mm = {R:.3f}\n'
                     f'wall_material = "aisi-304"\n\n[[profile]]\ntype = "circle"\nradius_mm = {R:.3f}\n')
-    return str(path), R, n * 4.0 / 3.0 * BALL_RADIUS_MM**3 / (R**2 * R)
+    return str(path), R, fill_fraction(n, R, R)
+
+
+def preset_jar(n: int) -> tuple[None, float, float]:
+    """The preset's own jar (jars/CY.toml): (no override, radius mm, fill)."""
+    jar = tomllib.loads((ROOT / "jars" / "CY.toml").read_text())
+    R = max(p["radius_mm"] for p in jar["profile"] if p["type"] == "circle")
+    return None, R, fill_fraction(n, R, jar["height_mm"])
 
 
 def scaling_rows(quick: bool) -> list[dict]:
     """Labelled requests: the default mode for every N, then the extra rows."""
-    def row(label, n, mode=None, use_grid=None, settle=0.0):
+    def row(label, n, mode=None, use_grid=True, settle=0.0):
         return dict(label=label, n=n, request=dict(mode=mode, use_grid=use_grid, settle=settle))
 
-    rows = [row(str(n), n) for n in SCALING_N if not quick or n <= QUICK_MAX_N]
-    rows += [row("1000, parallel forced", 1000, "parallel", True), row("10000, fused forced", 10_000, "fused", True)]
+    ns = [n for n in SCALING_N if not quick or n <= QUICK_MAX_N]
+    rows = [row(str(n), n) for n in ns]
+    # the other launch mode on each side of PARALLEL_ABOVE = 50 000
+    rows += [row(f"{n}, parallel forced", n, "parallel") for n in ns if 1000 <= n <= 10_000]
+    rows += [row(f"{n}, fused forced", n, "fused") for n in ns if n > 50_000]
     if not quick:
         rows.append(row(f"1000, settled {SETTLE_SECONDS:g} s", 1000, settle=SETTLE_SECONDS))
     return rows
@@ -361,10 +380,7 @@ def scaling_rows(quick: bool) -> list[dict]:
 
 def scaling_point(row: dict, jar_dir: Path, seconds: float) -> dict:
     n = row["n"]
-    if n == 12:
-        jar, R, fill = None, 32.5, 12 * 4.0 / 3.0 * BALL_RADIUS_MM**3 / (32.5**2 * 24.1)  # jars/CY.toml
-    else:
-        jar, R, fill = write_jar(jar_dir, n)
+    jar, R, fill = preset_jar(n) if n == REFERENCE_BALLS else write_jar(jar_dir, n)
     row.update(jar_radius_mm=R, fill=fill)
     need = n * KIB_PER_BALL / 1024
     available = meminfo_mib("MemAvailable")
@@ -379,6 +395,12 @@ def scaling_point(row: dict, jar_dir: Path, seconds: float) -> dict:
     return row
 
 
+SLOPES = {  # which points enter each fit of cost per step against N
+    "default modes": lambda r: r["request"]["mode"] is None,
+    "fused mode only": lambda r: r["mode"] == "fused",
+}
+
+
 def loglog_slope(points: list[tuple[float, float]]) -> float | None:
     if len(points) < 2:
         return None
@@ -387,7 +409,7 @@ def loglog_slope(points: list[tuple[float, float]]) -> float | None:
     return sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
 
 
-def scaling_section(quick: bool) -> tuple[list[dict], float | None]:
+def scaling_section(quick: bool) -> tuple[list[dict], dict]:
     seconds = TARGET[quick]
     print(f"\n2. Scaling with the number of balls: first ≤ {WINDOW_STEPS} steps after placement,"
           f" {seconds:g} s timed per point, all threads")
@@ -399,15 +421,17 @@ def scaling_section(quick: bool) -> tuple[list[dict], float | None]:
         for row in scaling_rows(quick):
             rows.append(scaling_point(row, Path(tmp), seconds))
             print_scaling_row(row)
-    default = dict(mode=None, use_grid=None, settle=0.0)
-    fit = [(r["n"], r["us_per_step"]) for r in rows if r["request"] == default and r["n"] >= 1000 and "error" not in r]
-    slope = loglog_slope(fit)
-    if slope is None:
-        print("  too few points with N ≥ 1000 for a slope")
-    else:
-        print(f"  cost per step ∝ N^{slope:.2f} over N = {', '.join(str(n) for n, _ in fit)}"
-              " (default modes; 1 = O(N))")
-    return rows, slope
+    slopes = {}
+    for name, keep in SLOPES.items():
+        fit = [(r["n"], r["us_per_step"]) for r in rows
+               if "error" not in r and r["n"] >= 1000 and not r["request"]["settle"] and keep(r)]
+        slopes[name] = loglog_slope(fit)
+        if slopes[name] is None:
+            print(f"  {name}: too few points with N ≥ 1000 for a slope")
+        else:
+            print(f"  {name}: cost per step ∝ N^{slopes[name]:.2f} over N = {', '.join(str(n) for n, _ in fit)}"
+                  " (1 = O(N))")
+    return rows, slopes
 
 
 def print_scaling_row(r: dict):
@@ -441,7 +465,7 @@ def main():
         report["reference_duration"] = duration
         report["reference"], report["sweep_estimate_seconds"] = reference_section(duration)
     if args.only in (None, "scaling"):
-        report["scaling"], report["scaling_slope"] = scaling_section(args.quick)
+        report["scaling"], report["scaling_slopes"] = scaling_section(args.quick)
     report["machine"]["load_end"] = os.getloadavg()
     report["total_wall_seconds"] = time.perf_counter() - t0
     print("\nload: %.2f %.2f %.2f at the end;" % report["machine"]["load_end"],

@@ -115,6 +115,14 @@ def test_frictionless_two_spheres_thesis_fig_2_8(offset_mm):
     np.testing.assert_allclose(state["v"].sum(axis=0), [-v, 0, 0], atol=1e-12)
 
 
+def test_grazing_spheres_do_not_touch_thesis_fig_2_8_offset_12mm():
+    # Δ = 12 mm = 2r: the balls pass side by side; nothing may happen.
+    _, _, bb, _, _ = steel()
+    state, ev = two_ball_impact(bb, FRICTIONLESS, 3.3, 12e-3 + 1e-9, dt=dt_for(bb, 3.3, 60))
+    assert len(ev["t_start"]) == 0
+    np.testing.assert_array_equal(state["v"], [[0, 0, 0], [-3.3, 0, 0]])
+
+
 def test_constant_e_two_spheres_follow_eqs_2_3_and_2_4():
     # With hertz-mindlin (constant e) the discrete-impact equations hold outright:
     # v1f = v1i - (1+e) m2 (v1i - v2i)/(m1+m2) along n. Tolerance 0.01 on e.

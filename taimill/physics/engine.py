@@ -78,11 +78,10 @@ def step_mill(F: ti.template(), b, use_grid: ti.template()):
 
 
 @ti.kernel
-def advance_fused(F: ti.template(), n_steps: ti.i32, use_grid: ti.template()):
+def advance_fused(F: ti.template(), n_steps: ti.i32, margin: ti.i32, use_grid: ti.template()):
     for task in range(F.B * PAD):
         if task % PAD == 0:
             b = task // PAD
-            margin = F.n_balls[b] * S.SLOTS
             for _ in range(n_steps):
                 if not can_step(F, b, margin):
                     break
@@ -163,18 +162,29 @@ def export_frames(F: ti.template(), b: ti.i32, n: ti.i32, nb: ti.i32, t: ti.type
 class Engine:
     """Allocates the fields of B mills × N balls and advances them.
 
-    `mode` is "fused" or "parallel" (B = 1 only); `use_grid` selects the spatial hash
-    over the all-pairs loop (both give identical contact sets; all-pairs is faster
-    for a dozen balls, see scripts/bench.py).
+    `mode` is "fused" or "parallel" (B = 1 only); `use_grid` builds the neighbour lists
+    from the spatial hash instead of all pairs (identical lists, tests/test_neighbours;
+    no measurable speed difference at 12 balls, scripts/bench.py, so the hash is the
+    default and all pairs is the reference).
+
+    Each mill's ball rows are padded to a multiple of BALL_PAD so that two mills never
+    share a cache line: unpadded 12-ball mills on two threads ran 2-4x slower than one.
+    Output buffers are sized to about BUFFER_BYTES per mill.
     """
 
-    def __init__(self, batch, balls, *, mode="fused", use_grid=False, grid_cells=1,
-                 event_capacity=1 << 14, frame_capacity=64):
+    BALL_PAD = 8  # f64 × 8 = 64 B
+    BUFFER_BYTES = 64 << 20
+
+    def __init__(self, batch, balls, *, mode="fused", use_grid=True, grid_cells=1, frame_capacity=256):
         if mode == "parallel" and batch != 1:
             raise ValueError("parallel mode runs one mill")
         self.mode, self.use_grid = mode, use_grid or mode == "parallel"
-        cap = max(event_capacity, balls * S.SLOTS * (2 if mode == "fused" else 4))
-        self.F = S.Fields(batch, balls, cap, frame_capacity, grid_cells)
+        n = -(-balls // self.BALL_PAD) * self.BALL_PAD
+        # worst case: every open contact of every ball closes in one step
+        self.margin = min(n * S.SLOTS, max(1 << 15, 2 * n))
+        events = 2 * self.margin
+        frames = int(max(4, min(frame_capacity, self.BUFFER_BYTES // (72 * n))))
+        self.F = S.Fields(batch, n, events, frames, grid_cells)
 
     @property
     def B(self):
@@ -185,11 +195,10 @@ class Engine:
         or a fault (the caller drains and calls again)."""
         F = self.F
         if self.mode == "fused":
-            advance_fused(F, n_steps, self.use_grid)
+            advance_fused(F, n_steps, self.margin, self.use_grid)
             return
-        margin = F.N * S.SLOTS
         for _ in range(n_steps):
-            go = begin_step(F, margin)
+            go = begin_step(F, self.margin)
             if not go:
                 break
             if go & STALE:
@@ -230,5 +239,5 @@ class Engine:
         F.n_events[b] = 0
         F.n_frames[b] = 0
         if overflow:
-            raise RuntimeError("event buffer overflow (a bug: the launcher keeps a margin)")
+            raise RuntimeError(f"more than {self.margin} collision events ended in one step: event buffer overflow")
         return {"time": t, "position": x, "velocity": v, "spin": s}, ev, ledger

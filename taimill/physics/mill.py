@@ -89,12 +89,18 @@ def skin_for(spec: MillSpec) -> float:
 
 def grid_for(spec: MillSpec):
     """(lower corner, cell edge, dims) of the hash grid covering the jar: the edge is at
-    least the largest interaction reach, 2 r_max + skin."""
+    least the largest interaction reach, 2 r_max + skin, and coarser where a big, sparse
+    domain (a drop-test plate) would need more than max(4096, 8 N) cells."""
     h = (2.0 * float(spec.radius.max()) + skin_for(spec)) * 1.0001
     R = spec.bounding_radius
-    lo = np.array([-R, -R, 0.0]) - 0.5 * h
-    ext = np.array([2 * R, 2 * R, spec.height]) + h
+    box = np.array([2 * R, 2 * R, spec.height])
+    cap = max(4096, 8 * spec.n)
+    h = max(h, float(np.prod(box + h) / cap) ** (1 / 3))
+    ext = box + h
     dim = np.maximum(1, np.floor(ext / h)).astype(int)
+    while np.prod(dim) > cap:
+        dim = np.maximum(1, dim // 2)
+    lo = np.array([-R, -R, 0.0]) - 0.5 * h
     return lo, ext / dim, dim  # cells stretched to fill the box: edge ≥ h
 
 
@@ -131,8 +137,7 @@ def write_mill(F, b: int, spec: MillSpec):
         F.prim_par[b, k] = (par["radius"], 0.0, 0.0, 0.0)
     lo, h, dim = grid_for(spec)
     if np.prod(dim) > F.grid_cells:
-        dim = np.array([1, 1, 1])  # all balls in one cell: correct, only slower
-        h = np.array([1e3, 1e3, 1e3])
+        raise ValueError(f"grid of {np.prod(dim)} cells, fields hold {F.grid_cells}")
     F.grid_lo[b] = lo
     F.grid_h[b] = float(h.min())
     F.grid_dim[b] = dim

@@ -23,10 +23,12 @@ from taimill.sinks import EVENT_COLUMNS, FanOut, NullSink
 from taimill.summary import SummarySink
 
 _initialised = False
-PARALLEL_ABOVE = 2000  # balls: beyond this one mill uses every core (parallel mode)
-GRID_ABOVE = 32  # balls: beyond this the spatial hash beats all pairs (scripts/bench.py)
+# balls: beyond this one mill runs in parallel mode. Measured crossover on the 2-core
+# machine (scripts/bench.py): fused 366 vs parallel 673 µs/step at 10 000 balls,
+# 5263 vs 4311 at 100 000.
+PARALLEL_ABOVE = 50_000
 LAUNCH_SECONDS = 0.05  # simulated seconds per fused launch (≥ 10⁴ steps)
-FRAME_CAPACITY = 256  # frames buffered per mill between drains
+FRAME_CAPACITY = 256  # frames buffered per mill between drains (fewer for huge mills)
 _engines: dict = {}
 
 
@@ -35,7 +37,8 @@ def _engine(batch, balls, mode, use_grid, cells) -> Engine:
     compiling those costs ≈ 1.3 s each."""
     key = (batch, balls, mode, use_grid, cells)
     if key not in _engines:
-        _engines[key] = Engine(batch, balls, mode=mode, use_grid=use_grid, grid_cells=cells, frame_capacity=FRAME_CAPACITY)
+        _engines[key] = Engine(batch, balls, mode=mode, use_grid=use_grid, grid_cells=cells,
+                               frame_capacity=FRAME_CAPACITY if mode == "fused" else 8)
     return _engines[key]
 
 
@@ -84,20 +87,20 @@ def status_message(code: int, ball: int, t: float, dt: float) -> str:
 class Runner:
     """Advances a batch of mills to their step targets, streaming to one sink each."""
 
-    def __init__(self, specs: list[MillSpec], *, mode: str | None = None, use_grid: bool | None = None):
+    def __init__(self, specs: list[MillSpec], *, mode: str | None = None, use_grid: bool = True):
         init_taichi()
         self.specs = specs
         n = max(s.n for s in specs)
         mode = mode or ("parallel" if len(specs) == 1 and n > PARALLEL_ABOVE else "fused")
-        use_grid = (n > GRID_ABOVE) if use_grid is None else use_grid
+        cells = 1 << max(grid_cells_for(s) for s in specs).bit_length()
+        self.engine = _engine(len(specs), n, mode, use_grid, cells)
         every = min(s.frame_every for s in specs)
+        room = (self.engine.F.frame_capacity - 2) * every
         if mode == "fused":
             steps = max(10_000, int(LAUNCH_SECONDS / min(s.dt for s in specs)))
-            self.steps_per_launch = max(1, min(steps, (FRAME_CAPACITY - 2) * every))
+            self.steps_per_launch = max(1, min(steps, room))
         else:
-            self.steps_per_launch = max(1, min(every, 1000))
-        cells = 1 << max(grid_cells_for(s) for s in specs).bit_length() if use_grid or mode == "parallel" else 1
-        self.engine = _engine(len(specs), n, mode, use_grid, cells)
+            self.steps_per_launch = max(1, min(room, 1000))
         for b, spec in enumerate(specs):
             write_mill(self.engine.F, b, spec)
 

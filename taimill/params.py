@@ -6,6 +6,7 @@ does, with the unit in the key name; everything here is SI (m, kg, s, rad/s).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -13,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from taimill import geometry
 from taimill.errors import ConfigError
 from taimill.physics import laws_np
 
@@ -69,17 +71,22 @@ class Jar:
     height: float  #: m
     wall_material: str
     primitives: tuple  #: ((type, {param: SI value}), ...); interior = intersection
+    fillet: float = 0.0  #: m, radius rounding every corner of the profile
     description: str = ""
+
+    @functools.cached_property
+    def profile(self) -> geometry.Profile:
+        return geometry.build_profile(self.primitives, self.fillet)
 
     @property
     def radius(self) -> float:
-        """Radius of the circle primitive (m): the bounding radius of the profile."""
-        return max(p["radius"] for t, p in self.primitives if t == "circle")
+        """Bounding radius of the profile (m)."""
+        return self.profile.bounding_radius
 
     @property
     def area(self) -> float:
         """Cross-section area (m²)."""
-        return math.pi * self.radius**2
+        return self.profile.area
 
     @property
     def volume(self) -> float:
@@ -262,7 +269,12 @@ def _friction(t: "_Table", name: str, base: Friction | None = None) -> Friction:
 
 
 # ------------------------------------------------------------------ jars
-PRIMITIVES = {"circle": ("radius_mm",)}
+# primitive → its keys (unit in the name) and allowed ranges; see taimill.geometry
+PRIMITIVES = {
+    "circle": {"radius_mm": (0, 1000)},
+    "cut": {"distance_mm": (0, 1000), "angle_deg": (-360, 360)},
+    "lifter": {"radius_mm": (0, 1000), "distance_mm": (0, 1000), "angle_deg": (-360, 360)},
+}
 
 
 def resolve_jar_path(name: str, base: Path | None = None) -> Path:
@@ -284,6 +296,7 @@ def load_jar(name: str, source="preset", base: Path | None = None) -> Jar:
     height = t.get("height_mm", lo=0, lo_open=True, hi=1000) * 1e-3
     wall = t.get("wall_material", kind=str)
     desc = t.get("description", "", kind=str)
+    fillet = t.get("fillet_mm", 0.0, lo=0, hi=1000) * 1e-3
     t.used.add("profile")
     raw = t.data.get("profile")
     if not isinstance(raw, list) or not raw:
@@ -292,14 +305,25 @@ def load_jar(name: str, source="preset", base: Path | None = None) -> Jar:
     for i, item in enumerate(raw):
         p = _Table(item, path, f"profile[{i}].")
         kind = p.get("type", kind=str, allowed=tuple(PRIMITIVES))
-        values = {k.removesuffix("_mm"): p.get(k, lo=0, lo_open=True, hi=1000) * 1e-3 for k in PRIMITIVES[kind]}
+        values = {}
+        for key, (lo, hi) in PRIMITIVES[kind].items():
+            v = p.get(key, lo=lo, lo_open=key.endswith("_mm"), hi=hi)
+            values[key.removesuffix("_mm").removesuffix("_deg") + ("_deg" if key.endswith("_deg") else "")] = (
+                v * 1e-3 if key.endswith("_mm") else v)
         p.done()
         prims.append((kind, values))
-    if not any(k == "circle" for k, _ in prims):
-        raise ConfigError(path, "profile", raw, "needs one circle primitive (the jar's curved wall)")
+    if sum(k == "circle" for k, _ in prims) != 1:
+        raise ConfigError(path, "profile", [k for k, _ in prims], "needs exactly one circle primitive (the curved wall)")
     t.done()
     load_material(wall, path)
-    return Jar(path.stem, str(path), height, wall, tuple(prims), desc)
+    jar = Jar(path.stem, str(path), height, wall, tuple(prims), fillet, desc)
+    try:
+        jar.profile
+    except ValueError as err:
+        raise ConfigError(path, "profile", [k for k, _ in prims], f"cannot build the cross-section: {err}") from None
+    if len(jar.profile.pieces) > 1 and fillet <= 0:
+        raise ConfigError(path, "fillet_mm", fillet * 1e3, "a profile with corners needs a fillet radius > 0")
+    return jar
 
 
 # ------------------------------------------------------------------ contact laws
@@ -358,7 +382,7 @@ def pair_contact(pair: str, radius: float | None = None, law: str | None = None,
     friction, contact = load_friction(pair, source)
     db = _materials_db()["contact"][contact]
     ball = Balls(1, load_material(db["ball"], MATERIALS_FILE), radius or db["ball_radius_mm"] * 1e-3)
-    jar = Jar("plate", "drop test", 10.0, db["wall"], (("circle", {"radius": 1.0}),))
+    jar = Jar("plate", "drop test", 10.0, db["wall"], (("circle", {"radius": 1.0}),))  # a 2 m wide plate
     if law is not None and law not in laws_np.LAWS:
         raise ConfigError(source, "law", law, f"must be one of {', '.join(laws_np.LAWS)}")
     bb, bw = _contact_laws(contact, law, ball, jar, source)
@@ -398,7 +422,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
         bt.get("radius_mm", lo=0, lo_open=True, hi=0.5e3 * min(jar.radius, jar.height)) * 1e-3,
     )
     bt.done()
-    _check_fill(balls, jar, bt.where("count"))
+    _check_fill(balls, jar, bt.where("count"), bt.where("radius_mm"))
 
     pair = t.get("pair", kind=str)
     friction, contact = load_friction(pair, t.where("pair"))
@@ -456,13 +480,18 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     )
 
 
-def _check_fill(balls: Balls, jar: Jar, source):
-    """Random loose packing reaches ~0.55; refuse fills that cannot be placed."""
+def _check_fill(balls: Balls, jar: Jar, source, radius_source):
+    """Random loose packing reaches ~0.55; refuse fills that cannot be placed. A ball
+    larger than the fillets would touch both walls of a corner while the side-wall
+    SDF reports only the nearer: refuse it."""
     fill = balls.count * 4.0 / 3.0 * math.pi * balls.radius**3 / jar.volume
     if fill > 0.45:
         raise ConfigError(source, "balls.count", balls.count, f"balls fill {fill:.0%} of the jar; at most 45% can be placed at random")
     if 2 * balls.radius >= jar.height or balls.radius >= jar.radius:
-        raise ConfigError(source, "balls.radius_mm", balls.radius * 1e3, "balls must fit in the jar")
+        raise ConfigError(radius_source, "balls.radius_mm", balls.radius * 1e3, "balls must fit in the jar")
+    if len(jar.profile.pieces) > 1 and balls.radius > jar.fillet:
+        raise ConfigError(radius_source, "balls.radius_mm", balls.radius * 1e3,
+                          f"allowed range (0, {jar.fillet * 1e3:g}]: jar {jar.name}'s corners are rounded to {jar.fillet * 1e3:g} mm")
 
 
 def load_positions(name: str, base: Path, balls: Balls, jar: Jar, source) -> np.ndarray:
@@ -475,8 +504,8 @@ def load_positions(name: str, base: Path, balls: Balls, jar: Jar, source) -> np.
     if x.shape != (balls.count, 3):
         raise ConfigError(source, "initial_positions", name, f"shape {x.shape}; need ({balls.count}, 3) ball centres in m")
     r = balls.radius
-    rho = np.hypot(x[:, 0], x[:, 1])
-    if (rho > jar.radius - r).any() or (x[:, 2] < r).any() or (x[:, 2] > jar.height - r).any():
+    phi, _ = geometry.profile_sdf(jar.profile, x[:, :2])
+    if (phi < r).any() or (x[:, 2] < r).any() or (x[:, 2] > jar.height - r).any():
         raise ConfigError(source, "initial_positions", name, "a ball is not fully inside the jar")
     gaps = np.linalg.norm(x[:, None] - x[None], axis=-1) + np.eye(len(x)) * 1e9
     if (gaps < 2 * r).any():

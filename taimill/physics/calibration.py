@@ -23,7 +23,7 @@ def impact_spec(ball, jar, bb, bw, friction, positions, velocities, *, gravity, 
         radius=np.full(n, ball.radius), mass=np.full(n, ball.mass),
         position=np.asarray(positions, float), velocity=np.asarray(velocities, float),
         spin=np.zeros((n, 3)) if spins is None else np.asarray(spins, float),
-        primitives=jar.primitives, height=jar.height, ball_ball=bb, ball_wall=bw, friction=friction,
+        profile=jar.profile, height=jar.height, ball_ball=bb, ball_wall=bw, friction=friction,
         plate=STILL, jar=STILL, plate_radius=0.0, gravity=gravity, dt=dt, steps=steps, frame_every=max(1, steps),
     )
 

@@ -13,9 +13,7 @@ from taimill.params import Friction, NormalLaw, Preset
 from taimill.physics import state as S
 from taimill.physics.frame_np import Ramp
 from taimill.physics.placement import random_placement
-from taimill.physics.walls import CIRCLE
-
-PRIMITIVE_CODES = {"circle": CIRCLE}
+from taimill.geometry import Profile
 
 
 @dataclass(frozen=True)
@@ -25,7 +23,7 @@ class MillSpec:
     position: np.ndarray  #: (N, 3) m, jar frame
     velocity: np.ndarray  #: (N, 3) m/s, jar frame
     spin: np.ndarray  #: (N, 3) rad/s, absolute
-    primitives: tuple  #: jar profile, as params.Jar.primitives
+    profile: Profile  #: jar cross-section (taimill.geometry)
     height: float  #: m
     ball_ball: NormalLaw
     ball_wall: NormalLaw
@@ -48,7 +46,7 @@ class MillSpec:
 
     @property
     def bounding_radius(self):
-        return max(p["radius"] for t, p in self.primitives if t == "circle")
+        return self.profile.bounding_radius
 
     def replace(self, **kw) -> "MillSpec":
         return dataclasses.replace(self, **kw)
@@ -58,7 +56,7 @@ def from_preset(p: Preset, duration: float | None = None) -> MillSpec:
     n = p.balls.count
     x0 = p.initial_positions
     if x0 is None:
-        x0 = random_placement(n, p.balls.radius, p.jar.radius, p.jar.height, p.seed, p.source)
+        x0 = random_placement(n, p.balls.radius, p.jar.profile, p.jar.height, p.seed, p.source)
     every = max(1, int(round(1.0 / (p.trajectory_rate * p.dt))))
     frames = max(1, int(round((duration if duration is not None else p.duration) / (every * p.dt))))
     return MillSpec(
@@ -67,7 +65,7 @@ def from_preset(p: Preset, duration: float | None = None) -> MillSpec:
         position=np.asarray(x0, dtype=float),
         velocity=np.zeros((n, 3)),
         spin=np.zeros((n, 3)),
-        primitives=p.jar.primitives,
+        profile=p.jar.profile,
         height=p.jar.height,
         ball_ball=p.ball_ball,
         ball_wall=p.ball_wall,
@@ -113,8 +111,9 @@ def write_mill(F, b: int, spec: MillSpec):
     n = spec.n
     if n > F.N:
         raise ValueError(f"mill has {n} balls, fields hold {F.N}")
-    if len(spec.primitives) > S.MAX_PRIMITIVES:
-        raise ValueError(f"at most {S.MAX_PRIMITIVES} profile primitives")
+    pieces = spec.profile.pieces
+    if len(pieces) > S.MAX_PIECES:
+        raise ValueError(f"at most {S.MAX_PIECES} profile pieces, the jar has {len(pieces)}")
     F.n_balls[b] = n
     F.dt[b] = spec.dt
     F.gravity[b] = spec.gravity
@@ -131,10 +130,10 @@ def write_mill(F, b: int, spec: MillSpec):
         F.law_c[b, ct] = law.c
         F.law_d[b, ct] = law.d
     set_friction(F, b, spec.friction)
-    F.n_prims[b] = len(spec.primitives)
-    for k, (kind, par) in enumerate(spec.primitives):
-        F.prim_type[b, k] = PRIMITIVE_CODES[kind]
-        F.prim_par[b, k] = (par["radius"], 0.0, 0.0, 0.0)
+    F.n_pieces[b] = len(pieces)
+    rows = F.piece.to_numpy()
+    rows[b, : len(pieces)] = pieces
+    F.piece.from_numpy(rows)
     lo, h, dim = grid_for(spec)
     if np.prod(dim) > F.grid_cells:
         raise ValueError(f"grid of {np.prod(dim)} cells, fields hold {F.grid_cells}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from taimill.errors import ConfigError
+from taimill.geometry import Profile, profile_sdf
 
 GAP = 1e-4  # m, clearance between balls and to the walls at t = 0
 
@@ -12,43 +13,56 @@ GAP = 1e-4  # m, clearance between balls and to the walls at t = 0
 LATTICE_ABOVE = 2000  # balls; beyond this random sequential addition is too slow
 
 
-def random_placement(count: int, radius: float, jar_radius: float, height: float, seed: int, source="preset") -> np.ndarray:
-    """Random sequential addition inside the cylinder bounding the profile; the same
-    seed gives the same placement on every machine (NumPy PCG64). Large counts take a
-    seeded random subset of a cubic lattice instead."""
+def random_placement(count: int, radius: float, profile: Profile, height: float, seed: int, source="preset") -> np.ndarray:
+    """Random sequential addition inside the jar; the same seed gives the same placement
+    on every machine (NumPy PCG64). Large counts take a seeded random subset of a cubic
+    lattice instead."""
     if count > LATTICE_ABOVE:
-        return lattice_placement(count, radius, jar_radius, height, seed, source)
+        return lattice_placement(count, radius, profile, height, seed, source)
     rng = np.random.default_rng(seed)
-    rmax = jar_radius - radius - GAP
+    rmax = profile.bounding_radius - radius - GAP
     zlo, zhi = radius + GAP, height - radius - GAP
     pos = np.empty((count, 3))
     cell = 2 * radius + GAP
     placed = 0
-    for _ in range(2000 * count + 10000):
+    for _ in range(200 * count + 10000):
         if placed == count:
             break
         rho = rmax * np.sqrt(rng.random())
         phi = 2 * np.pi * rng.random()
         p = np.array([rho * np.cos(phi), rho * np.sin(phi), zlo + (zhi - zlo) * rng.random()])
+        if profile_sdf(profile, p[:2])[0][0] < radius + GAP:
+            continue
         if placed and (np.sum((pos[:placed] - p) ** 2, axis=1) < cell * cell).any():
             continue
         pos[placed] = p
         placed += 1
-    if placed < count:
-        raise ConfigError(source, "balls.count", count, f"could not place more than {placed} balls without overlap")
+    if placed < count:  # random addition jammed: staggered layers instead
+        return lattice_placement(count, radius, profile, height, seed, source)
     return pos
 
 
-def lattice_placement(count, radius, jar_radius, height, seed, source="preset"):
-    """A seeded random subset of the cubic lattice of pitch 2r + GAP inside the jar."""
-    pitch = 2 * radius + GAP
-    rmax = jar_radius - radius - GAP
-    g = np.arange(-rmax, rmax + 1e-12, pitch)
-    z = np.arange(radius + GAP, height - radius - GAP + 1e-12, pitch)
-    X, Y, Z = np.meshgrid(g, g, z, indexing="ij")
-    pts = np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=1)
-    pts = pts[np.hypot(pts[:, 0], pts[:, 1]) <= rmax]
+def lattice_placement(count, radius, profile: Profile, height, seed, source="preset"):
+    """A seeded random subset of a hexagonal close packing of pitch 2r + GAP inside the
+    jar (also the fallback when random addition jams: 24 balls in the 24.1 mm CY jar
+    need the staggered layers)."""
+    a = 2 * radius + GAP
+    dz = a * np.sqrt(2.0 / 3.0)
+    R = profile.bounding_radius
+    i, j = np.meshgrid(np.arange(-int(R / a) - 2, int(R / a) + 3), np.arange(-int(R / a) - 3, int(R / a) + 4))
+    base = np.column_stack([(i + 0.5 * (j % 2)).ravel() * a, j.ravel() * a * np.sqrt(3) / 2])
+    layers = []
+    z = radius + GAP
+    k = 0
+    while z <= height - radius - GAP + 1e-12:
+        shift = np.array([0.5 * a, a / (2 * np.sqrt(3))]) * (k % 2)
+        xy = base + shift
+        layers.append(np.column_stack([xy, np.full(len(xy), z)]))
+        z += dz
+        k += 1
+    pts = np.vstack(layers) if layers else np.zeros((0, 3))
+    pts = pts[profile_sdf(profile, pts[:, :2])[0] >= radius + GAP]
     if len(pts) < count:
-        raise ConfigError(source, "balls.count", count, f"at most {len(pts)} balls fit on the start lattice")
+        raise ConfigError(source, "balls.count", count, f"at most {len(pts)} balls fit in the jar at the start")
     pick = np.sort(np.random.default_rng(seed).choice(len(pts), count, replace=False))
     return pts[pick]

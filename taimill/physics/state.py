@@ -7,6 +7,8 @@ kept apart from State (evolving). Shapes in brackets, SI units.
 
 import taichi as ti
 
+from taimill.geometry import PIECE_COLUMNS
+
 # Contact slots per ball: 3 wall slots (side, floor, lid), then partner slots for the
 # ball-ball contacts this ball owns (partner index > own index). 12 = kissing number of
 # equal spheres, so a monodisperse packing can never overflow.
@@ -34,7 +36,7 @@ NEIGHBOURS = 32
 # Status codes.
 OK, NONFINITE, ESCAPED, SLOTS_FULL, LIST_FULL = 0, 1, 2, 3, 4
 
-MAX_PRIMITIVES = 8
+MAX_PIECES = 32  # boundary pieces of a jar profile (T: 12)
 CONTACT_TYPES = 2  # 0 ball-ball, 1 ball-wall
 
 
@@ -68,10 +70,9 @@ class Fields:
         self.mu_d = ti.field(f64, B)
         self.v_s = ti.field(f64, B)  #: m/s
         self.v_d = ti.field(f64, B)  #: m/s
-        # jar profile: primitive type and parameters (m) [B, P]
-        self.n_prims = ti.field(i32, B)
-        self.prim_type = ti.field(i32, (B, MAX_PRIMITIVES))
-        self.prim_par = ti.Vector.field(4, f64, (B, MAX_PRIMITIVES))
+        # jar profile: boundary pieces, rows of taimill.geometry [B, MAX_PIECES]
+        self.n_pieces = ti.field(i32, B)
+        self.piece = ti.Vector.field(PIECE_COLUMNS, f64, (B, MAX_PIECES))
         # uniform grid of the spatial hash [B]
         self.grid_lo = ti.Vector.field(3, f64, B)  #: m, corner of the grid
         self.grid_h = ti.field(f64, B)  #: m, cell edge (≥ largest ball diameter)

@@ -4,44 +4,65 @@ A jar is a 2-D profile extruded between the floor (z = 0) and the lid (z = heigh
 Each ball can touch three walls at once — side, floor, lid — each its own contact with
 its own event slot, so a ball resting in the floor/side corner feels both.
 
-The profile is the intersection of primitives read from the jar file (geometry is
-data, STYLE rule 5). Primitive codes and parameters (m) in `prim_par`:
-    0 circle: (R, 0, 0, 0) — interior ρ < R.
-New primitives plug in here and in walls_np.py (the NumPy twin).
+The profile is a G1 boundary of line and arc pieces built from the jar file's
+primitives by taimill.geometry (geometry is data, STYLE rule 5); this is the Taichi
+twin of geometry.profile_sdf, piece rows as documented there.
 """
 
 import taichi as ti
 
 SIDE, FLOOR, LID = 0, 1, 2
-CIRCLE = 0
+LINE, ARC = 0, 1
 BIG = 1e9
 
 
 @ti.func
-def primitive_sdf(kind: ti.i32, par, p):
-    """(φ, ∇φ) of one primitive at the 2-D point p."""
-    phi = BIG
-    grad = ti.Vector([0.0, 0.0])
-    if kind == CIRCLE:
-        rho = p.norm()
-        phi = par[0] - rho
-        if rho > 0.0:
-            grad = -p / rho
-    return phi, grad
+def piece_closest(row, p):
+    """(closest point, inward normal there) of one boundary piece to the 2-D point p."""
+    q = ti.Vector([0.0, 0.0])
+    n = ti.Vector([0.0, 0.0])
+    if row[0] == LINE:
+        a = ti.Vector([row[1], row[2]])
+        ab = ti.Vector([row[3], row[4]]) - a
+        t = ti.min(ti.max((p - a).dot(ab) / ab.dot(ab), 0.0), 1.0)
+        q = a + t * ab
+        n = ti.Vector([row[5], row[6]])
+    else:
+        c = ti.Vector([row[1], row[2]])
+        d = p - c
+        r = d.norm()
+        u = ti.Vector([row[5], row[6]])  # at the centre every point is nearest: take the mid one
+        if r > 0.0:
+            u = d / r
+        if u[0] * row[5] + u[1] * row[6] >= row[7]:
+            q = c + row[3] * u
+        else:
+            e0 = ti.Vector([row[8], row[9]])
+            e1 = ti.Vector([row[10], row[11]])
+            q = e0 if (p - e0).norm_sqr() <= (p - e1).norm_sqr() else e1
+        n = -row[4] * (q - c) / row[3]
+    return q, n
 
 
 @ti.func
 def profile_sdf(F: ti.template(), b, p):
-    """Intersection of the primitives: the smallest φ and its gradient."""
+    """(φ, ∇φ) of the profile at the 2-D point p: the nearest piece, signed by its
+    inward normal."""
+    best = BIG
     phi = BIG
     grad = ti.Vector([0.0, 0.0])
-    for k in range(F.n_prims[b]):
-        pk, gk = primitive_sdf(F.prim_type[b, k], F.prim_par[b, k], p)
-        if pk < phi:
-            phi, grad = pk, gk
+    for k in range(F.n_pieces[b]):
+        q, n = piece_closest(F.piece[b, k], p)
+        v = p - q
+        dist = v.norm()
+        if dist < best:
+            sign = 1.0 if v.dot(n) >= 0.0 else -1.0
+            best = dist
+            phi = sign * dist
+            grad = n
+            if dist > 1e-12:
+                grad = sign * v / dist
     return phi, grad
-
-
 @ti.func
 def wall_sdf(F: ti.template(), b, wall: ti.template(), x):
     """(φ, ∇φ) of wall SIDE, FLOOR or LID at x; ∇φ points into the jar."""

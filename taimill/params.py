@@ -239,10 +239,6 @@ def load_material(name: str, source="material") -> Material:
     return m
 
 
-def pair_names() -> list[str]:
-    return list(_materials_db()["pair"])
-
-
 def load_friction(name: str, source, key="pair") -> tuple[Friction, str]:
     db = _materials_db()
     if name not in db["pair"]:
@@ -256,13 +252,14 @@ def load_friction(name: str, source, key="pair") -> tuple[Friction, str]:
 
 def _friction(t: "_Table", name: str, base: Friction | None = None) -> Friction:
     """μ_s, μ_d, v_s, v_d from table t, defaulting to `base` (preset overrides)."""
-    d = base or Friction(name, ..., ..., ..., ...)
-    mu_s = t.get("mu_s", d.mu_s, lo=0, hi=10)
-    mu_d = t.get("mu_d", d.mu_d, lo=0, hi=10)
+    required = (...,) * 4  # the sentinel `get` takes for "no default"
+    d_mu_s, d_mu_d, d_vs, d_vd = required if base is None else (base.mu_s, base.mu_d, base.v_s * 1e3, base.v_d * 1e3)
+    mu_s = t.get("mu_s", d_mu_s, lo=0, hi=10)
+    mu_d = t.get("mu_d", d_mu_d, lo=0, hi=10)
     if mu_d > mu_s:
         raise ConfigError(t.where("mu_d"), t.key("mu_d"), mu_d, f"dynamic friction must not exceed static mu_s = {mu_s:g}; allowed range [0, {mu_s:g}]")
-    v_s = t.get("v_s_mm_s", ... if base is None else d.v_s * 1e3, lo=0, lo_open=True, hi=1e4) * 1e-3
-    v_d = t.get("v_d_mm_s", ... if base is None else d.v_d * 1e3, lo=0, lo_open=True, hi=1e5) * 1e-3
+    v_s = t.get("v_s_mm_s", d_vs, lo=0, lo_open=True, hi=1e4) * 1e-3
+    v_d = t.get("v_d_mm_s", d_vd, lo=0, lo_open=True, hi=1e5) * 1e-3
     if v_d <= v_s:
         raise ConfigError(t.where("v_d_mm_s"), t.key("v_d_mm_s"), v_d * 1e3, f"must exceed v_s_mm_s = {v_s * 1e3:g}")
     return Friction(name, mu_s, mu_d, v_s, v_d)
@@ -327,7 +324,8 @@ def load_jar(name: str, source="preset", base: Path | None = None) -> Jar:
 
 
 # ------------------------------------------------------------------ contact laws
-def _normal_law(t: _Table, law: str, k, m_eff) -> NormalLaw:
+def _normal_law(t: _Table, law: str, k, m_eff, e_eff, r_eff) -> NormalLaw:
+    """One contact type; e_eff (Pa) and r_eff (m) of eq 2.17 give kelvin-voigt's k*."""
     c_max = t.get("c_max_Ns_per_mm", lo=0, hi=1e6) * 1e3  # N·s/mm → N·s/m (SPEC §3 trap)
     d = t.get("d_mm", lo=0, lo_open=True, hi=100) * 1e-3
     e = t.get("e", lo=0, lo_open=True, hi=1)
@@ -340,15 +338,9 @@ def _normal_law(t: _Table, law: str, k, m_eff) -> NormalLaw:
         raise ConfigError(t.source, t.key("e"), e, f"law {law} needs a restitution in (0, 1)")
     n = 1.0 if law == "kelvin-voigt" else 1.5
     if n == 1.0:
-        k = _kelvin_voigt_k(t, k, m_eff, u_ref)
+        k = laws_np.di_maio_stiffness(m_eff, u_ref, e_eff, r_eff)
     c = laws_np.calibrate_damping(law_id, e, k, n, m_eff, u_ref, d)
     return NormalLaw(law, k, n, c, d, m_eff, e, u_ref)
-
-
-def _kelvin_voigt_k(t, k_hertz, m_eff, u_ref):
-    """Linear stiffness with the same peak overlap as Hertz at u_ref (equal energy)."""
-    u_max = (2.5 * m_eff * u_ref**2 / (2.0 * k_hertz)) ** 0.4
-    return m_eff * u_ref**2 / u_max**2
 
 
 def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source):
@@ -369,8 +361,10 @@ def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source)
     r, m = balls.radius, balls.mass
     k_bb = laws_np.hertz_stiffness(bm.youngs_modulus, bm.poisson, bm.youngs_modulus, bm.poisson, r, r)
     k_bw = laws_np.hertz_stiffness(bm.youngs_modulus, bm.poisson, wm.youngs_modulus, wm.poisson, r)
-    bb = _normal_law(t.table("ball_ball"), law, k_bb, m / 2.0)
-    bw = _normal_law(t.table("ball_wall"), law, k_bw, m)
+    e_bb = 1.0 / (2.0 / bm.youngs_modulus)  # eq 2.17: 1/E_e = 1/E_i + 1/E_j
+    e_bw = 1.0 / (1.0 / bm.youngs_modulus + 1.0 / wm.youngs_modulus)
+    bb = _normal_law(t.table("ball_ball"), law, k_bb, m / 2.0, e_bb, r / 2.0)
+    bw = _normal_law(t.table("ball_wall"), law, k_bw, m, e_bw, r)
     t.done()
     return bb, bw
 

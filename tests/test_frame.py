@@ -1,7 +1,5 @@
 """Friction and the spinning jar frame against analytic results (SPEC §2, §3, §8)."""
 
-import math
-
 import numpy as np
 import pytest
 

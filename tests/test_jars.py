@@ -2,8 +2,6 @@
 unit gradient, continuous normals, Taichi == NumPy) and balls against every wall
 feature of a spinning jar."""
 
-import math
-
 import numpy as np
 import pytest
 import taichi as ti

@@ -11,7 +11,7 @@ from taimill.params import GRAVITY, pair_contact
 from taimill.physics import laws_np
 from taimill.physics.frame_np import Ramp
 from taimill.physics.mill import MillSpec
-from taimill.physics.simulation import Runner, events_table
+from taimill.physics.simulation import Runner
 from taimill.sinks import MemorySink
 
 STILL = Ramp(0.0, 0.0, 0.0, 1.0)

@@ -31,8 +31,3 @@ class Ramp:
         accel = delta * 6.0 * s * (1.0 - s) / self.duration if tau < self.duration else 0.0
         integral = s**3 - 0.5 * s**4 if tau < self.duration else tau / self.duration - 0.5
         return speed, accel, self.phase0 + self.start * tau + delta * self.duration * integral
-
-    def retarget(self, t: float, end: float, duration: float) -> "Ramp":
-        """A new ramp from the current speed and angle at t to `end` (live changes)."""
-        speed, _, angle = self.at(t)
-        return Ramp(t, speed, end, duration, angle)

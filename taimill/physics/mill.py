@@ -4,7 +4,6 @@ calibration), and written into slot b of an Engine's fields."""
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -173,9 +172,3 @@ def write_mill(F, b: int, spec: MillSpec):
 def set_friction(F, b: int, fr: Friction):
     """Friction is live-tunable: it is field data the next step reads."""
     F.mu_s[b], F.mu_d[b], F.v_s[b], F.v_d[b] = fr.mu_s, fr.mu_d, fr.v_s, fr.v_d
-
-
-def hertz_contact_time(law: NormalLaw, v: float) -> float:
-    """Undamped Hertz contact duration at speed v (s), for reporting."""
-    u_max = (2.5 * law.m_eff * v * v / (2.0 * law.k)) ** 0.4
-    return 2.9432 * u_max / v if v > 0 else math.inf

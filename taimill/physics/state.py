@@ -8,6 +8,7 @@ kept apart from State (evolving). Shapes in brackets, SI units.
 import taichi as ti
 
 from taimill.geometry import PIECE_COLUMNS
+from taimill.sinks import ENERGY_COLUMNS, EVENT_COLUMNS
 
 # Contact slots per ball: 3 wall slots (side, floor, lid), then partner slots for the
 # ball-ball contacts this ball owns (partner index > own index). 12 = kissing number of
@@ -20,15 +21,13 @@ SLOTS = WALLS + PARTNER_SLOTS
 SLOT_T0, SLOT_UN, SLOT_UT, SLOT_PX, SLOT_PY, SLOT_PZ, SLOT_FPEAK, SLOT_UPEAK, SLOT_DN, SLOT_DT = range(10)
 SLOT_DATA = 10
 
-# Event record columns (see taimill.sinks.EVENT_COLUMNS for meaning and units).
-EVENT_FIELDS = (
-    "t_start", "duration", "body_i", "body_j", "kind", "x", "y", "z", "un", "ut", "m_eff",
-    "peak_force", "peak_penetration", "dissipated_normal", "dissipated_friction",
-)
+# Event record columns as the kernel writes them: sinks.EVENT_COLUMNS without the
+# stress energies, which the launcher derives from m_eff, un, ut.
+EVENT_FIELDS = tuple(k for k in EVENT_COLUMNS if k not in ("se_n", "se_t"))
 NCOL = len(EVENT_FIELDS)
 
-# Energy ledger snapshot columns, taken with every frame.
-LEDGER_FIELDS = ("kinetic", "potential", "elastic", "drive_work", "dissipated")
+# Energy ledger snapshot columns, taken with every frame (sinks.ENERGY_COLUMNS but time).
+LEDGER_FIELDS = tuple(k for k in ENERGY_COLUMNS if k != "time")
 
 # Verlet list length per ball (equal spheres within a skin of 0.1 r: at most ~14).
 NEIGHBOURS = 32

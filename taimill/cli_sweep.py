@@ -1,0 +1,139 @@
+"""`taimill sweep PRESET --ratio A:B:STEP …` (SPEC §9): the cartesian product of the
+swept values, R replicas per point, batched mills on local processes or a dask cluster,
+an optional refinement of the maximum, a sweep store and a table or JSON."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import sys
+
+from taimill.errors import ConfigError
+
+REFINE_METRICS = ("mean_se", "mean_se_normal", "mean_se_tangential", "impact_power", "impact_power_normal",
+                  "impact_power_tangential", "randomness_index", "normal_fraction", "collision_rate", "dissipated_power")
+# (column, header, scale, format)
+COLUMNS = (("point", "point", 1, "d"), ("jar", "jar", None, "s"), ("balls", "balls", 1, "d"), ("pair", "pair", None, "s"),
+           ("plate_rpm", "Ω rpm", 1, "g"), ("ratio", "K", 1, "g"), ("seed", "seed", 1, "d"),
+           ("mean_se", "SE mJ", 1e3, ".4g"), ("mean_se_normal", "SE_n mJ", 1e3, ".4g"),
+           ("mean_se_tangential", "SE_t mJ", 1e3, ".4g"), ("impact_power", "P_I W", 1, ".4g"),
+           ("randomness_index", "1/σ", 1, ".3g"), ("regime", "regime", None, "s"), ("wall_seconds", "wall s", 1, ".1f"))
+
+
+def register(subparsers) -> None:
+    s = subparsers.add_parser("sweep", help="sweep K (and Ω, pair, balls, jar) with batched mills on all cores")
+    # K is mostly negative: let "--ratio -2:-4:0.2" and "--ratio -1,-2" through as values
+    # (argparse only lets plain negative numbers through; the form --ratio=… always works)
+    s._negative_number_matcher = re.compile(r"^-\d*\.?\d+(?:[:,][-+\d.:,eE]*)?$")
+    s.add_argument("preset", help="preset TOML file, e.g. presets/p4-cy-steel.toml")
+    g = s.add_argument_group("swept values: A:B:STEP (inclusive; e.g. 0:-4:0.2), v1,v2,… or one value")
+    g.add_argument("--ratio", help="K = ω/Ω + 1 values")
+    g.add_argument("--plate-rpm", help="Ω values (rpm)")
+    g.add_argument("--pair", help="friction pairs, e.g. steel-steel,steel-fluorite")
+    g.add_argument("--balls", help="ball counts, e.g. 6,12,24")
+    g.add_argument("--jar", help="jars, e.g. CY,HM")
+    g.add_argument("--replicas", type=int, default=1, help="R seeds per point (seed … seed+R-1): mean ± 95%% band")
+    g.add_argument("--refine", action="store_true", help="add points around the maximum of --refine-metric")
+    g.add_argument("--refine-metric", default="mean_se", choices=REFINE_METRICS, help="figure to maximise (default mean_se)")
+    g.add_argument("--refine-rounds", type=int, default=2, help="refinement rounds, each halving the spacing (default 2)")
+    o = s.add_argument_group("run overrides (every point)")
+    o.add_argument("--seed", type=int, help="seed of the first replica")
+    o.add_argument("--duration", type=float, help="simulated seconds per point")
+    o.add_argument("--analysis-start", type=float, help="start of the analysis window (s)")
+    o.add_argument("--dt", help="time step in s, or 'auto' (per point)")
+    o.add_argument("--law", help="normal contact law")
+    x = s.add_argument_group("execution")
+    x.add_argument("--workers", type=int, help="local worker processes (default: one per core)")
+    x.add_argument("--batch", type=int, help="mills per kernel, B (default 2, measured)")
+    x.add_argument("--scheduler", metavar="ADDRESS", help="dask.distributed scheduler, e.g. tcp://host:8786")
+    s.add_argument("--out", help="sweep store to write (SWEEP.zarr); the same command resumes it")
+    s.add_argument("--overwrite", action="store_true", help="replace an existing --out store")
+    s.add_argument("--json", action="store_true", help="print a JSON list of the points' summaries with the swept values")
+    s.set_defaults(fn=cmd_sweep)
+
+
+def request(a):
+    """Validated sweep.Request from the parsed arguments."""
+    from taimill.sweep import DEFAULT_BATCH, Request, parse_values
+
+    axes = {}
+    for key, opt, kind in (("ratio", "--ratio", float), ("plate_rpm", "--plate-rpm", float), ("pair", "--pair", str),
+                           ("balls.count", "--balls", int), ("jar", "--jar", str)):
+        text = getattr(a, key.replace(".count", "").replace("-", "_"))
+        if text is not None:
+            axes[key] = parse_values(text, opt, kind)
+    dt = a.dt
+    if dt is not None and dt != "auto":
+        try:
+            dt = float(dt)
+        except ValueError:
+            pass
+    overrides = {k: v for k, v in {"seed": a.seed, "duration": a.duration, "analysis_start": a.analysis_start,
+                                    "dt": dt, "law": a.law}.items() if v is not None}
+    if a.scheduler and a.workers is not None:
+        raise ConfigError("command line", "--workers", a.workers, "not used with --scheduler (the cluster's workers run the chunks)")
+    if a.workers is not None and not 1 <= a.workers <= 256:
+        raise ConfigError("command line", "--workers", a.workers, "allowed range [1, 256]")
+    if a.batch is not None and not 1 <= a.batch <= 64:
+        raise ConfigError("command line", "--batch", a.batch, "allowed range [1, 64]")
+    if not 1 <= a.refine_rounds <= 10:
+        raise ConfigError("command line", "--refine-rounds", a.refine_rounds, "allowed range [1, 10]")
+    if a.refine and len(axes.get("ratio", [])) < 3:
+        raise ConfigError("command line", "--ratio", a.ratio, "--refine needs a K range of at least 3 values")
+    req = Request(a.preset, overrides, axes, a.replicas, a.refine_metric if a.refine else None,
+                  a.refine_rounds if a.refine else 0)
+    return req, dict(batch=a.batch or DEFAULT_BATCH, workers=a.workers, scheduler=a.scheduler)
+
+
+def cmd_sweep(a) -> int:
+    from taimill.cli import _plain, _stderr_console
+    from taimill.sweep import plan, run_sweep
+    from taimill.sweepstore import SweepStore
+
+    req, run_kw = request(a)
+    plan(req)  # every point validated before a store is touched or a kernel runs
+    store = SweepStore.create(a.out, req.identity(), overwrite=a.overwrite) if a.out else None
+    show_bar = not a.json or sys.stderr.isatty()
+    if show_bar:
+        from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+        with Progress(TextColumn("sweeping"), BarColumn(), TextColumn("{task.completed:.1f}/{task.total:.1f} mill-s"),
+                      TimeRemainingColumn(), transient=True, console=_stderr_console()) as bar:
+            task = bar.add_task("sweep", total=1.0)  # the real total comes with the first report
+            rows, peaks = run_sweep(req, store, progress=lambda d, t: bar.update(task, completed=d, total=t), **run_kw)
+    else:
+        rows, peaks = run_sweep(req, store, **run_kw)
+    if a.json:
+        print(json.dumps([_plain(r) for r in rows]))
+        for p in peaks:
+            print(peak_line(p), file=sys.stderr)
+        return 0
+    print(table(rows))
+    for p in peaks:
+        print(peak_line(p))
+    if a.out:
+        print(f"stored in {a.out}")
+    return 0
+
+
+def table(rows: list[dict]) -> str:
+    cols = [c for c in COLUMNS if any(c[0] in r for r in rows)]
+    cells = [[_cell(r.get(k), scale, fmt) for k, _, scale, fmt in cols] for r in rows]
+    widths = [max([len(h)] + [len(c[i]) for c in cells]) for i, (_, h, _, _) in enumerate(cols)]
+    lines = ["  ".join(f"{h:>{w}}" for (_, h, _, _), w in zip(cols, widths))]
+    lines += ["  ".join(f"{c:>{w}}" for c, w in zip(row, widths)) for row in cells]
+    return "\n".join(lines)
+
+
+def _cell(v, scale, fmt) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-" if v is None else str(v)
+    if scale is None:
+        return str(v)
+    return format(int(v) if fmt == "d" else v * scale, fmt)
+
+
+def peak_line(p: dict) -> str:
+    curve = ", ".join(f"{k} {p[k]}" for k in ("jar", "balls", "pair", "plate_rpm"))
+    return f"maximum of {p['metric']} ({curve}): K = {p['ratio']:.3f}, {p['value']:.4g} ({p['method']})"

@@ -1,0 +1,255 @@
+"""Parameter sweeps (SPEC §9 `taimill sweep`): plan the cartesian product of the swept
+values and the replicas' seeds, validate every point before any kernel runs, batch the
+points into chunks of B mills (one Runner, one fused kernel per chunk), run the chunks
+on spawned local processes or a dask cluster (sweepexec), store them (sweepstore), and
+optionally refine the location of a figure's maximum along K (sweepstats).
+
+A point is exactly the run `taimill run PRESET` with the same overrides and seed: the
+same MillSpec, the same summary code (simulation.start_point / point_result), so its
+event table is bit-identical (tests/test_sweep.py).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import os
+from dataclasses import dataclass, field
+
+from taimill.errors import ConfigError
+from taimill.sweepexec import Job, chunk_seconds, run_dask, run_local
+from taimill.sweepstats import parabolic_peak, refine_candidates
+from taimill.sweepstore import SweepStore, scalars
+
+# Swept preset keys, outermost first (ratio innermost: a chunk holds neighbouring K).
+AXES = ("jar", "balls.count", "pair", "plate_rpm", "ratio")
+CURVE_AXES = ("jar", "balls", "pair", "plate_rpm")  # table columns telling curves apart
+MAX_POINTS = 10_000
+# Mills per kernel and local processes. Measured on the 2-core machine (README "Sweeps"):
+# B mills on one thread cost B times one mill (µs per mill-step flat within noise for
+# B = 1, 2, 4), and two processes on two cores give 2x; so B only amortises launches and
+# drains, while small chunks balance the load between processes: B = 2 and one process
+# per core.
+DEFAULT_BATCH = 2
+
+
+def parse_values(text: str, key: str, kind=float) -> list:
+    """Swept values from the command line: "A:B:STEP" (A to B inclusive, the step's
+    sign taken from A → B) or "v1,v2,…" or one value. Numbers are rounded to 10
+    decimals so that -2.6 from a range is the -2.6 one would type. Strings for kind=str."""
+    def bad(why):
+        return ConfigError("command line", key, text, why)
+
+    text = text.strip()
+    if kind is str:
+        values = [v.strip() for v in text.split(",")]
+        if not all(values):
+            raise bad("a comma-separated list of names with no empty entry")
+    elif ":" in text:
+        parts = text.split(":")
+        if len(parts) != 3:
+            raise bad("a range A:B:STEP (e.g. 0:-4:0.2), a list v1,v2,… or one value")
+        try:
+            a, b, step = (float(p) for p in parts)
+        except ValueError:
+            raise bad("A, B and STEP of A:B:STEP must be numbers") from None
+        if not all(map(math.isfinite, (a, b, step))) or step == 0:
+            raise bad("A:B:STEP needs finite numbers and STEP ≠ 0")
+        n = int(math.floor(abs(b - a) / abs(step) + 1e-9)) + 1
+        if n > MAX_POINTS:
+            raise bad(f"{n} values; at most {MAX_POINTS}")
+        step = math.copysign(abs(step), b - a) if b != a else step
+        values = [round(a + i * step, 10) for i in range(n)]
+    else:
+        try:
+            values = [kind(v) for v in text.split(",")]
+        except ValueError:
+            raise bad(f"a comma-separated list of {'integers' if kind is int else 'numbers'}, or a range A:B:STEP") from None
+        if kind is float and not all(map(math.isfinite, values)):
+            raise bad("values must be finite")
+    if kind is int and any(v != int(v) for v in values):
+        raise bad("values must be integers")
+    values = [kind(v) for v in values]
+    if len(set(values)) != len(values):
+        raise bad("a value is repeated")
+    return values
+
+
+@dataclass
+class Request:
+    """A sweep as asked for: preset file, fixed overrides (the run options), swept
+    values per preset key (AXES), replicas (seeds seed … seed+R−1)."""
+
+    preset: str
+    overrides: dict
+    axes: dict
+    replicas: int = 1
+    refine_metric: str | None = None
+    refine_rounds: int = 0
+    extra_ratios: dict = field(default_factory=dict)  # curve → K added by refinement
+
+    def identity(self) -> dict:
+        """What makes two sweeps the same store (refinement may extend either)."""
+        return {"preset": os.path.abspath(self.preset), "overrides": self.overrides,
+                "axes": self.axes, "replicas": self.replicas}
+
+
+def plan(req: Request, ratios_for=None) -> list[dict]:
+    """Points of the cartesian product in AXES order, replicas innermost, each
+    {overrides, values, preset}; every preset is loaded and validated here, before
+    any kernel runs. `ratios_for(curve_values) -> list[K]` replaces the K axis (refine)."""
+    from taimill.params import load_preset
+
+    base = load_preset(req.preset, req.overrides)
+    seed0 = base.seed
+    if not 1 <= req.replicas <= 1000:
+        raise ConfigError("command line", "--replicas", req.replicas, "allowed range [1, 1000]")
+    if seed0 + req.replicas - 1 > 2**63 - 1:
+        raise ConfigError("command line", "--seed", seed0, f"seed + replicas - 1 must stay below 2^63; allowed range [0, {2**63 - req.replicas}]")
+    outer = [req.axes.get(k, [None]) for k in AXES[:-1]]
+    points = []
+    for combo in itertools.product(*outer):
+        fixed = {k: v for k, v in zip(AXES[:-1], combo) if v is not None}
+        ratios = req.axes.get("ratio", [None]) if ratios_for is None else ratios_for(fixed)
+        for k, r in itertools.product(ratios, range(req.replicas)):
+            ov = dict(req.overrides) | fixed | {"seed": seed0 + r}
+            if k is not None:
+                ov.pop("jar_rpm", None)
+                ov["ratio"] = k
+            p = load_preset(req.preset, ov)
+            points.append({"overrides": ov, "values": point_values(p, r), "preset": p})
+    if len(points) > MAX_POINTS:
+        raise ConfigError("command line", "sweep", len(points), f"at most {MAX_POINTS} points (values × replicas)")
+    return points
+
+
+def point_values(p, replica: int) -> dict:
+    """The table's description of a resolved preset (SI radii, rpm)."""
+    return {"jar": p.jar.name, "balls": p.balls.count, "pair": p.pair, "plate_rpm": p.plate_omega * 30 / math.pi,
+            "ratio": p.ratio, "seed": p.seed, "replica": replica, "plate_radius": p.plate_radius,
+            "jar_radius": p.jar.radius, "ball_radius": p.balls.radius, "duration": p.duration}
+
+
+def chunks(jobs: list[Job], batch: int) -> list[list[Job]]:
+    """Chunks of at most `batch` jobs with the same ball count and jar (one engine
+    shape per process), the costliest first (longest-processing-time-first balances
+    the workers); cost = ball-steps = balls × duration / dt."""
+    def cost(j):
+        return j.preset.balls.count * j.preset.duration / j.preset.dt
+
+    groups: dict = {}
+    for j in sorted(jobs, key=lambda j: (j.preset.balls.count, j.preset.jar.name, -cost(j), j.index)):
+        groups.setdefault((j.preset.balls.count, j.preset.jar.name), []).append(j)
+    out = [g[i:i + batch] for g in groups.values() for i in range(0, len(g), batch)]
+    return sorted(out, key=lambda c: -sum(map(cost, c)))
+
+
+class Progress:
+    """Simulated mill-seconds done over all pending points → callback(done, total)."""
+
+    def __init__(self, all_chunks, callback):
+        self.total = sum(chunk_seconds(c) for c in all_chunks)
+        self.parts: dict[int, float] = {}
+        self.callback = callback
+
+    def __call__(self, cid, seconds):
+        self.parts[cid] = seconds
+        if self.callback:
+            self.callback(sum(self.parts.values()), self.total)
+
+
+def execute(points, store: SweepStore | None, *, batch=DEFAULT_BATCH, workers=None, scheduler=None,
+            progress=None) -> dict[int, dict]:
+    """Run the points not yet in the store; returns {point index: table row} for all."""
+    if store is not None:
+        index = store.add_points(points)
+        done = store.done()
+    else:
+        index, done = list(range(len(points))), set()
+    jobs = [Job(i, p["preset"]) for i, p in zip(index, points) if i not in done]
+    jobs = list({j.index: j for j in jobs}.values())
+    rows = {}
+    all_chunks = chunks(jobs, batch)
+    if all_chunks:
+        prog = Progress(all_chunks, progress)
+        keep = store is not None
+        if scheduler:
+            stream = run_dask(all_chunks, scheduler, keep, prog)
+        else:
+            stream = run_local(all_chunks, max(1, min(workers or os.cpu_count() or 1, len(all_chunks))), keep, prog)
+        for results in stream:
+            for r in results:
+                if store is not None:
+                    store.write_point(r)
+                rows[r.index] = r.summary
+    if store is None:
+        return {i: {"point": i, **p["values"], **scalars(rows[i])} for i, p in zip(index, points)}
+    table = store.table()
+    where = {int(v): k for k, v in enumerate(table["point"])}
+    return {i: {name: _py(col[where[i]]) for name, col in table.items()} for i in index}
+
+
+def _py(v):
+    return v.item() if hasattr(v, "item") else v
+
+
+def curve_of(row: dict) -> tuple:
+    return tuple(row[k] for k in CURVE_AXES)
+
+
+def run_sweep(req: Request, store: SweepStore | None = None, **run_kw) -> tuple[list[dict], list[dict]]:
+    """Grid, then `refine_rounds` rounds of refinement per curve; returns (rows in plan
+    order, peaks per curve of the refine metric — empty without refinement)."""
+    points = plan(req)
+    rows = execute(points, store, **run_kw)
+    peaks = []
+    if req.refine_metric:
+        for _ in range(req.refine_rounds):
+            extra = _refinement(rows, req.refine_metric)
+            if not extra:
+                break
+            rows |= execute(plan(req, lambda fixed: extra.get(_fixed_curve(fixed, rows), [])), store, **run_kw)
+        peaks = peaks_by_curve(rows.values(), req.refine_metric)
+        if store is not None:
+            store.set_refine({"metric": req.refine_metric, "rounds": req.refine_rounds, "peaks": peaks})
+    return [rows[i] for i in sorted(rows)], peaks
+
+
+def _refinement(rows: dict, metric: str) -> dict:
+    """curve → new K values of this refinement round."""
+    by_curve: dict = {}
+    for r in rows.values():
+        by_curve.setdefault(curve_of(r), []).append(r)
+    out = {}
+    for curve, rs in by_curve.items():
+        new = refine_candidates([r["ratio"] for r in rs], [r.get(metric, math.nan) for r in rs])
+        if new:
+            out[curve] = new
+    return out
+
+
+def _fixed_curve(fixed: dict, rows: dict) -> tuple:
+    """The curve a `plan` combination of outer axes belongs to (values resolved as in
+    the table: the preset's own where the axis is not swept)."""
+    names = {"jar": "jar", "balls.count": "balls", "pair": "pair", "plate_rpm": "plate_rpm"}
+    for r in rows.values():
+        if all(_same(r[names[k]], v) for k, v in fixed.items()):
+            return curve_of(r)
+    return ()
+
+
+def _same(a, b) -> bool:
+    return math.isclose(a, b, rel_tol=1e-12) if isinstance(a, float) and not isinstance(b, str) else str(a) == str(b)
+
+
+def peaks_by_curve(rows, metric: str) -> list[dict]:
+    """Parabolic peak (sweepstats.parabolic_peak) of `metric` along K for each curve."""
+    by_curve: dict = {}
+    for r in rows:
+        by_curve.setdefault(curve_of(r), []).append(r)
+    out = []
+    for curve, rs in sorted(by_curve.items(), key=lambda kv: str(kv[0])):
+        peak = parabolic_peak([r["ratio"] for r in rs], [r.get(metric, math.nan) for r in rs])
+        out.append(dict(zip(CURVE_AXES, curve)) | {"metric": metric} | peak)
+    return out
+

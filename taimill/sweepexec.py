@@ -1,0 +1,163 @@
+"""Running chunks of sweep points: each chunk of B points is ONE `Runner(specs)` (B mills
+in one fused kernel) on a worker process, and the results travel back to the process
+that writes the sweep store (so workers need no shared file system).
+
+Backends:
+- local: `ProcessPoolExecutor` with the **spawn** start method (fork after `ti.init`
+  hangs, NOTES.md); every worker calls `init_taichi(threads=1)` once and keeps its
+  engine between chunks (simulation._engines); progress comes back over a queue after
+  every kernel launch.
+- dask: `distributed.Client(address).submit` per chunk; a dask worker process starts
+  Taichi lazily on its first chunk and reuses it. Workers must run one thread each
+  (`dask worker ADDRESS --nthreads 1`; `processes=False` or several threads break
+  Taichi, NOTES.md). Progress advances per finished chunk.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import queue as queue_mod
+import time
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass
+
+import numpy as np
+
+from taimill.sinks import MemorySink, NullSink
+
+
+@dataclass(frozen=True)
+class Job:
+    """One sweep point to simulate: its index in the sweep plan and its resolved preset."""
+
+    index: int
+    preset: object  #: taimill.params.Preset
+
+
+@dataclass
+class PointResult:
+    """What a worker sends back for one point: the run's summary (SPEC §9), its status,
+    and (when a store is written) the whole stream, concatenated per table."""
+
+    index: int
+    summary: dict
+    status: str
+    config: dict
+    n_balls: int
+    radii: np.ndarray
+    tables: dict | None  #: {"frames": …, "events": …, "energy": …} (MemorySink tables)
+
+
+def chunk_seconds(jobs: list[Job]) -> float:
+    """Simulated mill-seconds in a chunk (the progress unit)."""
+    return float(sum(j.preset.duration for j in jobs))
+
+
+# ---------------------------------------------------------------- worker side
+_progress = None  # the local backend's queue, set in each worker process
+
+
+def _init_local_worker(progress_queue):
+    from taimill.physics.simulation import init_taichi
+
+    global _progress
+    _progress = progress_queue
+    init_taichi(threads=1)  # in the worker's main thread, where its kernels run
+
+
+def _check_dask_worker():
+    """Taichi needs one thread per process: refuse multi-threaded dask workers."""
+    try:
+        from distributed import get_worker
+
+        worker = get_worker()
+    except (ImportError, ValueError):
+        return
+    if getattr(worker, "nthreads", 1) > 1:
+        raise RuntimeError(f"dask worker {worker.address} runs {worker.nthreads} threads; taimill needs one thread "
+                           "per worker process (start workers with --nthreads 1, LocalCluster(threads_per_worker=1))")
+
+
+def run_chunk(chunk_id: int, jobs: list[Job], keep_streams: bool) -> list[PointResult]:
+    """Simulate the chunk's points as one batch of mills; a point that goes unstable
+    keeps what it computed (status "unstable: …") and the others run on. Each point's
+    wall_seconds is the batch's wall time shared in proportion to its ball-steps (the
+    mills of a batch advance one after another on the worker's one thread)."""
+    from taimill.physics.mill import from_preset
+    from taimill.physics.simulation import Runner, init_taichi, point_result, start_point
+
+    _check_dask_worker()
+    init_taichi(threads=1)
+    specs = [from_preset(j.preset) for j in jobs]
+    mems = [MemorySink() if keep_streams else NullSink() for _ in jobs]
+    started = [start_point(j.preset, s, m) for j, s, m in zip(jobs, specs, mems)]
+    outs = [out for _, out in started]
+    status = ["complete"] * len(jobs)
+    t0 = time.perf_counter()
+    runner = Runner(specs)
+    while not runner.done():
+        for b, fault in enumerate(runner.launch(outs)):
+            if fault and status[b] == "complete":
+                status[b] = f"unstable: {fault}"
+        if _progress is not None:
+            done = sum(min(runner.time(b), s.steps * s.dt) for b, s in enumerate(specs))
+            _progress.put((chunk_id, done))
+    wall = time.perf_counter() - t0
+    work = np.array([int(runner.engine.F.step[b]) * s.n for b, s in enumerate(specs)], dtype=float)
+    share = work / work.sum() if work.sum() > 0 else np.full(len(jobs), 1.0 / len(jobs))
+    results = []
+    for b, (job, spec, mem, (summary, out)) in enumerate(zip(jobs, specs, mems, started)):
+        result = point_result(job.preset, spec, summary, runner, b, wall * share[b], status[b])
+        result["batch"] = len(jobs)
+        out.finish(result, status[b])
+        tables = None
+        if keep_streams:
+            tables = {"frames": mem.frame_table, "events": mem.event_table, "energy": mem.energy_table}
+        results.append(PointResult(job.index, result, status[b], mem.config if keep_streams else {}, spec.n,
+                                   np.asarray(spec.radius), tables))
+    return results
+
+
+# ---------------------------------------------------------------- parent side
+def run_local(chunks: list[list[Job]], workers: int, keep_streams: bool, on_progress):
+    """Yield each chunk's results as it finishes, from `workers` spawned processes.
+    on_progress(chunk_id, simulated seconds done in that chunk) after every launch."""
+    ctx = multiprocessing.get_context("spawn")
+    progress_queue = ctx.Queue()
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_local_worker,
+                               initargs=(progress_queue,))
+    try:
+        futures = {pool.submit(run_chunk, cid, chunk, keep_streams): cid for cid, chunk in enumerate(chunks)}
+        pending = set(futures)
+        while pending:
+            done, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
+            _drain(progress_queue, on_progress)
+            for fut in done:
+                results = fut.result()
+                on_progress(futures[fut], chunk_seconds(chunks[futures[fut]]))
+                yield results
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _drain(q, on_progress):
+    while True:
+        try:
+            cid, seconds = q.get_nowait()
+        except queue_mod.Empty:
+            return
+        on_progress(cid, seconds)
+
+
+def run_dask(chunks: list[list[Job]], address: str, keep_streams: bool, on_progress):
+    """Yield each chunk's results as it finishes on the dask cluster at `address`."""
+    from distributed import Client, as_completed
+
+    with Client(address) as client:
+        futures = {client.submit(run_chunk, cid, chunk, keep_streams, pure=False): cid
+                   for cid, chunk in enumerate(chunks)}
+        for fut in as_completed(futures):
+            cid = futures[fut]
+            results = fut.result()
+            on_progress(cid, chunk_seconds(chunks[cid]))
+            yield results

@@ -1,0 +1,190 @@
+"""Zarr v3 store of a sweep: one run store per point plus a table of per-point summaries.
+
+Layout:
+
+    attrs:   kind = "sweep", schema_version, sweep (what was asked: preset, overrides,
+             axes, replicas — a re-run with the same request resumes), plan (per point:
+             key, overrides, values), refine (metric, rounds, peaks; after --refine)
+    points/p00000, p00001, …   each a normal run store written by store.ZarrSink(group):
+                               store.open_run(group) and the analysis work on it
+    table/   one 1-D array per column, one row per planned point: `point`, the swept
+             values (jar, balls, pair, plate_rpm, ratio, seed, replica), the radii behind
+             K_c (plate_radius, jar_radius, ball_radius, m), every scalar of the point's
+             summary (integers as i8, other numbers as f8, text as strings), and `done`.
+
+Crash safety (as store.py): only the process running the sweep writes. A point's row
+is written after its group is finished, and `done` last; readers use rows with `done`.
+A killed sweep re-run with the same request skips every finished point (a point whose
+group finished but whose row was not yet marked is re-indexed from the group's summary)
+and re-runs the rest, which is seeded and so gives the same result.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import zarr
+
+from taimill.errors import ConfigError
+from taimill.store import ZarrSink, open_run, plain
+
+SCHEMA_VERSION = 1
+VALUE_COLUMNS = ("jar", "balls", "pair", "plate_rpm", "ratio", "seed", "replica",
+                 "plate_radius", "jar_radius", "ball_radius", "duration")
+TABLE_CHUNK = 4096
+
+
+def point_key(overrides: dict) -> str:
+    """Canonical identity of a point: its preset overrides as sorted JSON."""
+    return json.dumps(plain(overrides), sort_keys=True)
+
+
+def is_sweep(path) -> bool:
+    """True if `path` is a sweep store (a zarr group with kind = "sweep")."""
+    try:
+        return zarr.open_group(path, mode="r").attrs.get("kind") == "sweep"
+    except (OSError, ValueError):  # missing path, a file, an array (zarr's errors subclass both)
+        return False
+
+
+class SweepStore:
+    """A sweep store open for writing (`create`) or reading (`open_sweep`)."""
+
+    def __init__(self, root: zarr.Group):
+        self.root = root
+
+    # ---------------------------------------------------------------- opening
+    @classmethod
+    def create(cls, path, request: dict, *, overwrite: bool = False) -> "SweepStore":
+        """A new store for `request`, or the existing one for the same request (resume).
+        An existing store of another sweep, or anything else, needs overwrite."""
+        path = Path(path)
+        request = plain(request)
+        if path.exists() and not overwrite:
+            if not is_sweep(path):
+                raise ConfigError("command line", "--out", str(path), "exists and is not a sweep store; pass --overwrite to replace it")
+            old = open_sweep(path, mode="r+")
+            if old.request != request:
+                changed = sorted(k for k in set(request) | set(old.request) if request.get(k) != old.request.get(k))
+                raise ConfigError("command line", "--out", str(path),
+                                  f"holds a different sweep ({', '.join(changed)} differ); pass --overwrite to replace it, or resume it with the same arguments")
+            return old
+        root = zarr.open_group(path, mode="w")
+        root.attrs.update({"kind": "sweep", "schema_version": SCHEMA_VERSION, "sweep": request, "plan": []})
+        root.create_group("points")
+        table = root.create_group("table", attributes={"description": "one row per planned point; rows with done = true are valid"})
+        table.create_array("done", shape=(0,), chunks=(TABLE_CHUNK,), dtype=bool, fill_value=False, dimension_names=("point",))
+        return cls(root)
+
+    @property
+    def request(self) -> dict:
+        return self.root.attrs.get("sweep", {})
+
+    @property
+    def plan(self) -> list[dict]:
+        return self.root.attrs.get("plan", [])
+
+    # ---------------------------------------------------------------- planning
+    def add_points(self, points: list[dict]) -> list[int]:
+        """Indices of `points` ({overrides, values}) in the plan, appending new ones."""
+        plan = self.plan
+        index = {p["key"]: i for i, p in enumerate(plan)}
+        out = []
+        for p in points:
+            key = point_key(p["overrides"])
+            if key not in index:
+                index[key] = len(plan)
+                plan.append({"key": key, "overrides": plain(p["overrides"]), "values": plain(p["values"])})
+            out.append(index[key])
+        table = self.root["table"]
+        for name in table.array_keys():  # grow first: new rows read as fill (not done)
+            if table[name].shape[0] < len(plan):
+                table[name].resize((len(plan),))
+        self.root.attrs["plan"] = plan
+        return out
+
+    def done(self) -> set[int]:
+        """Finished points; re-indexes points whose group finished before their row."""
+        flags = self.root["table"]["done"][:]
+        finished = {int(i) for i in np.flatnonzero(flags)}
+        points = self.root["points"]
+        for i in range(len(self.plan)):
+            name = _name(i)
+            if i in finished or name not in points:
+                continue
+            run = open_run(points[name])
+            if run.summary is not None and run.status not in (None, "running"):
+                self._write_row(i, run.summary)
+                finished.add(i)
+        return finished
+
+    # ---------------------------------------------------------------- writing
+    def write_point(self, result) -> None:
+        """Store one sweep_exec.PointResult: its run group, then its table row."""
+        group = self.root["points"].require_group(_name(result.index))
+        sink = ZarrSink(group)
+        sink.start(result.config, result.n_balls, result.radii)
+        if result.tables is not None:
+            for table, write in (("frames", sink.frames), ("events", sink.events), ("energy", sink.energy)):
+                if result.tables[table] is not None:
+                    write(result.tables[table])
+        sink.finish(result.summary, result.status)
+        self._write_row(result.index, result.summary)
+
+    def _write_row(self, i: int, summary: dict) -> None:
+        row = {"point": i, **self.plan[i]["values"], **scalars(summary)}
+        table = self.root["table"]
+        n = len(self.plan)
+        for name, value in row.items():
+            if name not in table:
+                dtype, fill = (str, "") if isinstance(value, str) else ("i8", -1) if isinstance(value, int) else ("f8", np.nan)
+                table.create_array(name, shape=(n,), chunks=(TABLE_CHUNK,), dtype=dtype, fill_value=fill,
+                                   dimension_names=("point",))
+            table[name][i] = value
+        table["done"][i] = True
+
+    def set_refine(self, info: dict) -> None:
+        self.root.attrs["refine"] = plain(info)
+
+    # ---------------------------------------------------------------- reading
+    def table(self) -> dict[str, np.ndarray]:
+        """Columns over the finished points, in plan order."""
+        t = self.root["table"]
+        done = t["done"][:]
+        rows = np.flatnonzero(done)
+        return {name: np.asarray(t[name][:])[rows] for name in t.array_keys() if name != "done"}
+
+    def point(self, i: int):
+        """The run store (store.RunStore) of point i."""
+        return open_run(self.root["points"][_name(i)])
+
+    @property
+    def refine(self) -> dict | None:
+        return self.root.attrs.get("refine")
+
+
+def open_sweep(path, mode: str = "r") -> SweepStore:
+    if not is_sweep(path):
+        raise ConfigError("command line", "sweep store", str(path), "is not a sweep store (made by taimill sweep --out)")
+    return SweepStore(zarr.open_group(path, mode=mode))
+
+
+def scalars(summary: dict) -> dict:
+    """The summary's scalar entries (int, float, str), for the table."""
+    out = {}
+    for k, v in summary.items():
+        if isinstance(v, bool) or v is None:
+            continue
+        if isinstance(v, (int, np.integer)):
+            out[k] = int(v)
+        elif isinstance(v, (float, np.floating)):
+            out[k] = float(v)
+        elif isinstance(v, str):
+            out[k] = v
+    return out
+
+
+def _name(i: int) -> str:
+    return f"p{i:05d}"

@@ -32,6 +32,9 @@ SUMMARY_ROWS = (
     ("energy_balance_error", "energy balance error", "%", 100),
     ("randomness_index", "randomness index 1/σ", "", 1),
     ("regime", "motion regime", "", None),
+    ("regime_confidence", "  confidence (share of 1 s pieces)", "", 1),
+    ("critical_ratio", "critical ratio K_c (one ball)", "", 1),
+    ("single_ball_se", "one-ball hit energy (Burgio-type)", "mJ", 1e3),
 )
 
 
@@ -77,7 +80,17 @@ def _fmt(value, scale):
 def summary_table(s: dict) -> str:
     rows = [(label, _fmt(s.get(key), scale), unit) for key, label, unit, scale in SUMMARY_ROWS if key in s]
     w = max(len(r[0]) for r in rows)
-    return "\n".join(f"{label:<{w}}  {value:>12} {unit}" for label, value, unit in rows)
+    text = "\n".join(f"{label:<{w}}  {value:>12} {unit}" for label, value, unit in rows)
+    return text + _hot_spot_line(s.get("wear_hot_spot") or {})
+
+
+def _hot_spot_line(h: dict) -> str:
+    if not h.get("surface"):
+        return ""
+    where = (f"side wall at {h['angle_deg']:.0f}°, z = {h['z'] * 1e3:.1f} mm" if h["surface"] == "side"
+             else f"{h['surface']} at x = {h['x'] * 1e3:.1f}, y = {h['y'] * 1e3:.1f} mm")
+    return (f"\nwear hot spot: {where}, {h['power_per_area']:.4g} W/m² "
+            f"({h['concentration']:.3g}× the wall mean)")
 
 
 def cmd_run(a) -> int:
@@ -132,16 +145,17 @@ def _stderr_console():
     return Console(stderr=True)
 
 
-def _plain(d):
-    """JSON-safe: numpy scalars to Python, non-finite floats to null."""
-    out = {}
-    for k, v in d.items():
-        if hasattr(v, "item"):
-            v = v.item()
-        if isinstance(v, float) and not math.isfinite(v):
-            v = None
-        out[k] = v
-    return out
+def _plain(v):
+    """JSON-safe, recursively: numpy scalars to Python, non-finite floats to null."""
+    if isinstance(v, dict):
+        return {k: _plain(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    if hasattr(v, "item"):
+        v = v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
 
 
 def cmd_drop(a) -> int:
@@ -228,6 +242,9 @@ def parser() -> argparse.ArgumentParser:
     js = jsub.add_parser("show", help="draw a jar's outline and signed-distance field")
     js.add_argument("name", help="jar name (jars/NAME.toml) or path to a jar TOML")
     js.add_argument("--out", help="image to write, .png or .svg (default jar-NAME.png)")
+    from taimill import cli_report, cli_sweep
+    cli_sweep.register(sub)
+    cli_report.register(sub)
     return p
 
 

@@ -34,7 +34,9 @@ _engines: dict = {}
 
 def _engine(batch, balls, mode, use_grid, cells) -> Engine:
     """Engines are reused within a process: new fields mean new kernel instances, and
-    compiling those costs ≈ 1.3 s each."""
+    compiling those costs ≈ 1.3 s each. Ball counts with the same padded row length
+    (Engine.BALL_PAD) share one engine: its fields are identical."""
+    balls = -(-balls // Engine.BALL_PAD) * Engine.BALL_PAD
     key = (batch, balls, mode, use_grid, cells)
     if key not in _engines:
         _engines[key] = Engine(batch, balls, mode=mode, use_grid=use_grid, grid_cells=cells,
@@ -143,14 +145,29 @@ class Runner:
         return {k: getattr(F, k).to_numpy()[b, :n] for k in ("x", "v", "s")}
 
 
-def run(preset, sink=None, *, duration: float | None = None, progress=None) -> dict:
-    """Simulate one preset; streams to `sink`; returns the SPEC §9 summary."""
-    sink = sink or NullSink()
-    spec = from_preset(preset, duration)
+def start_point(preset, spec, sink) -> tuple[SummarySink, FanOut]:
+    """The summary sink of one mill and the stream feeding it and `sink`, started
+    (shared by run() and sweeps so that a sweep point is the same run)."""
     sim_seconds = spec.steps * spec.dt
     summary = SummarySink(min(preset.analysis_start, sim_seconds), sim_seconds, preset.jar.radius, preset.balls.radius)
     out = FanOut(summary, sink)
     out.start(preset.as_dict() | {"duration": sim_seconds}, spec.n, spec.radius)
+    return summary, out
+
+
+def point_result(preset, spec, summary, runner, b, wall, status) -> dict:
+    """SPEC §9 summary of mill b of `runner`; wall in s."""
+    result = summary.result(runner.time(b), wall)
+    result.update(dt=spec.dt, steps=int(runner.engine.F.step[b]), status=status,
+                  ratio=preset.ratio, plate_rpm=preset.plate_omega * 30 / math.pi)
+    return result
+
+
+def run(preset, sink=None, *, duration: float | None = None, progress=None) -> dict:
+    """Simulate one preset; streams to `sink`; returns the SPEC §9 summary."""
+    sink = sink or NullSink()
+    spec = from_preset(preset, duration)
+    summary, out = start_point(preset, spec, sink)
     t0 = time.perf_counter()
     runner = Runner([spec])
     status = "complete"
@@ -163,9 +180,6 @@ def run(preset, sink=None, *, duration: float | None = None, progress=None) -> d
         status = "interrupted"
         raise
     finally:
-        wall = time.perf_counter() - t0
-        result = summary.result(runner.time(0), wall)
-        result.update(dt=spec.dt, steps=int(runner.engine.F.step[0]), status=status,
-                      ratio=preset.ratio, plate_rpm=preset.plate_omega * 30 / math.pi)
+        result = point_result(preset, spec, summary, runner, 0, time.perf_counter() - t0, status)
         out.finish(result, status)
     return result

@@ -1,0 +1,124 @@
+"""Motion regime of the balls — cascading, cataracting or rolling — from measurable
+criteria, with the criteria, thresholds and a confidence reported.
+
+Criteria (each a fraction or a length ratio, measured in the analysis window):
+- `wall_fraction`: share of ball-frames whose centre is within r(1 + 2 %) of the side
+  wall (the ball touches it).
+- `flight_fraction`: share of ball-frames touching neither the side wall nor another
+  ball (in flight; the floor and lid do not count, gravity only sets balls on the floor).
+- `flight_chord`: mean distance between successive side-wall impacts (u̇_n ≥ 5 cm/s)
+  of the same ball, over the largest chord a centre can fly, 2(R − r).
+
+Rules, in order:
+    rolling      wall_fraction ≥ 0.5 and flight_fraction < 0.35   (balls ride the wall)
+    cataracting  flight_fraction ≥ 0.55                           (most of the time in
+                                                                  flight)
+    cascading    otherwise                                       (balls roll and tumble
+                                                                  over the bed)
+Thresholds set from the CY steel preset scanned over K = −0.2 … −3.8 (8 s runs, the
+window from 1 s): wall_fraction 0.06–0.36 for K ≥ −2.6 vs 0.77–0.91 at K ≤ −3.4;
+flight_fraction 0.42 at K = −0.6 and 0.70 at K = −2.2. The cascading/cataracting
+change is gradual (every criterion moves monotonically from K = −0.2 to −2.6); the
+threshold sits halfway between K = −0.6 and −2.2 and puts the change near K ≈ −1.4
+(|K| ≈ 0.65 |K_c|). Checked on HM steel (−0.6 cascading, −2.2 cataracting, −3.8
+rolling) and CY fluorite (−0.6 cascading; −2.2 and −3.8 rolling: with μ = 0.2 the
+balls slide round the wall as a ring). The flight chord is reported, not used: with
+the HM flat wall it stays ≈ 0.07 at K = −2.2 although the balls are mostly in flight.
+
+Confidence: the window is cut into 1 s pieces, each classified by the same rules; the
+confidence is the share of pieces agreeing with the whole window's label (1.0 = every
+second looks the same; low values flag a run at a regime boundary or still settling).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from taimill.analysis.contacts import MAX_PAIRWISE, frame_contacts
+from taimill.analysis.rungeometry import SIDE, RunGeometry
+
+ROLLING_WALL, ROLLING_FLIGHT = 0.5, 0.35
+CATARACT_FLIGHT = 0.55
+TOUCH_SLACK = 0.02  # of a ball radius
+IMPACT_UN = 0.05  # m/s, side-wall impacts counted for the flight chord
+FEATURE_RATE = 25.0  # frames per second examined
+PIECE = 1.0  # s, sub-window for the confidence
+
+THRESHOLDS = {"rolling": {"wall_fraction >=": ROLLING_WALL, "flight_fraction <": ROLLING_FLIGHT},
+              "cataracting": {"flight_fraction >=": CATARACT_FLIGHT}}
+
+
+def classify(wall_fraction: float, flight_fraction: float, flight_chord: float = math.nan) -> str:
+    """The rules above; NaN criteria (e.g. too many balls to search pairs) fall back on
+    the wall fraction alone."""
+    if not math.isfinite(wall_fraction):
+        return "unknown"
+    if not math.isfinite(flight_fraction):
+        return "rolling" if wall_fraction >= ROLLING_WALL else "cascading/cataracting"
+    if wall_fraction >= ROLLING_WALL and flight_fraction < ROLLING_FLIGHT:
+        return "rolling"
+    if flight_fraction >= CATARACT_FLIGHT:
+        return "cataracting"
+    return "cascading"
+
+
+class RegimeFeatures:
+    """Accumulates the criteria over the window t ≥ t0, per 1 s piece."""
+
+    def __init__(self, g: RunGeometry, radii, t0: float = 0.0):
+        self.g, self.radii, self.t0 = g, np.asarray(radii, float), t0
+        self.pairwise = len(self.radii) <= MAX_PAIRWISE
+        self.next_t = t0
+        self.pieces: dict[int, np.ndarray] = {}  # piece -> [ball-frames, on wall, in flight, chord sum, chords]
+        self.last_impact: dict[int, tuple[float, float]] = {}
+        self.chord_scale = 2.0 * (g.jar_radius - g.ball_radius)
+
+    def _piece(self, t: float) -> np.ndarray:
+        return self.pieces.setdefault(int((t - self.t0) // PIECE), np.zeros(5))
+
+    def frames(self, block: dict) -> None:
+        n = len(self.radii)
+        for f, t in enumerate(block["time"]):
+            if t < self.next_t - 1e-12:
+                continue
+            self.next_t = t + 1.0 / FEATURE_RATE
+            w = self.g.jar.at(float(t))[0]
+            c = frame_contacts(self.g, self.radii, block["position"][f], block["velocity"][f], block["spin"][f], w,
+                               slack=TOUCH_SLACK * self.g.ball_radius)
+            on_wall = np.unique(c["i"][c["j"] == SIDE]).astype(int)
+            bb = c["j"] >= 0
+            touching = np.unique(np.concatenate([on_wall, c["i"][bb], c["j"][bb]]).astype(int))
+            p = self._piece(float(t))
+            p[0] += n
+            p[1] += len(on_wall)
+            p[2] += (n - len(touching)) if self.pairwise else math.nan
+
+    def events(self, block: dict) -> None:
+        sel = (block["kind"] == 1) & (block["body_j"] == SIDE) & (block["un"] >= IMPACT_UN) & (block["t_start"] >= self.t0)
+        order = np.argsort(block["t_start"][sel], kind="stable")
+        for t, b, x, y in zip(*(block[k][sel][order] for k in ("t_start", "body_i", "x", "y"))):
+            prev = self.last_impact.get(int(b))
+            self.last_impact[int(b)] = (x, y)
+            if prev is not None:
+                p = self._piece(float(t))
+                p[3] += math.hypot(x - prev[0], y - prev[1]) / self.chord_scale
+                p[4] += 1
+
+    @staticmethod
+    def _criteria(a: np.ndarray) -> dict:
+        return {"wall_fraction": a[1] / a[0] if a[0] else math.nan,
+                "flight_fraction": a[2] / a[0] if a[0] else math.nan,
+                "flight_chord": a[3] / a[4] if a[4] else 0.0}
+
+    def result(self) -> dict:
+        """{'regime', 'regime_confidence', 'regime_criteria': {...}, 'regime_thresholds'}"""
+        full = [p for p in self.pieces.values() if p[0] > 0]
+        if not full:
+            return {"regime": "unknown", "regime_confidence": math.nan, "regime_criteria": {}, "regime_thresholds": THRESHOLDS}
+        crit = self._criteria(np.sum(full, axis=0))
+        label = classify(**crit)
+        votes = [classify(**self._criteria(p)) for p in full]
+        return {"regime": label, "regime_confidence": votes.count(label) / len(votes),
+                "regime_criteria": crit, "regime_thresholds": THRESHOLDS}

@@ -1,0 +1,230 @@
+"""Publication figures of one run (matplotlib, headless). Each panel is a function
+drawing into axes it is given, so the single figures and the overview sheet share
+the drawing code. Units on every axis; each file carries its caption in its metadata
+(PNG/SVG 'Description', PDF 'Subject')."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.colors import LogNorm  # noqa: E402
+
+from taimill.analysis.events import ENERGY_BINS, SPEED_BINS, log_pdf  # noqa: E402
+from taimill.analysis.run import RunAnalysis  # noqa: E402
+
+FORMATS = ("png", "svg", "pdf")
+MM = 1e3
+plt.rcParams.update({"font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9, "legend.fontsize": 8,
+                     "figure.dpi": 150, "savefig.bbox": "tight"})
+
+
+def _outline(ax, a: RunAnalysis):
+    o = np.vstack([a.geom.profile.outline, a.geom.profile.outline[:1]]) * MM
+    ax.plot(o[:, 0], o[:, 1], color="0.2", lw=1.2)
+    ax.set_aspect("equal")
+
+
+def draw_trajectories_top(ax, a: RunAnalysis, balls: int = 3, seconds: float = 0.5):
+    fr = a.store.frames
+    sel = (fr["time"] >= a.t0) & (fr["time"] < a.t0 + seconds)
+    _outline(ax, a)
+    for b in range(min(balls, a.geom.n_balls)):
+        x = fr["position"][sel, b] * MM
+        ax.plot(x[:, 0], x[:, 1], lw=0.8, label=f"ball {b}")
+    ax.set(xlabel="x (mm, jar frame)", ylabel="y (mm)", title=f"Trajectories, top view ({seconds:g} s)")
+    ax.legend(loc="upper right")
+
+
+def draw_trajectories_section(ax, a: RunAnalysis, balls: int = 3, seconds: float = 0.5):
+    fr = a.store.frames
+    sel = (fr["time"] >= a.t0) & (fr["time"] < a.t0 + seconds)
+    R, H = a.geom.jar_radius * MM, a.geom.height * MM
+    ax.plot([-R, R, R, -R, -R], [0, 0, H, H, 0], color="0.2", lw=1.2)
+    for b in range(min(balls, a.geom.n_balls)):
+        x = fr["position"][sel, b] * MM
+        ax.plot(x[:, 0], x[:, 2], lw=0.8)
+    ax.set(xlabel="x (mm, jar frame)", ylabel="z (mm)", title="Trajectories, section")
+    ax.set_aspect("equal")
+
+
+def draw_gr(ax, a: RunAnalysis):
+    e = a.density.edges * MM
+    ax.stairs(a.density.g, e, fill=True, alpha=0.5, color="C0", label="g(r)")
+    ax.axhline(1.0, color="0.4", ls="--", lw=0.8, label="uniform")
+    ax.set(xlabel="distance from the jar axis r (mm)", ylabel="g(r) (–)",
+           title=f"Cylindrical distribution, 1/σ = {a.density.randomness_index:.3g}")
+    ax.legend()
+
+
+def draw_velocity_pdfs(ax, a: RunAnalysis):
+    centres = np.sqrt(SPEED_BINS[1:] * SPEED_BINS[:-1]) * MM
+    for hist, name, ls in ((a.event.hist_un, "normal u̇n", "-"), (a.event.hist_ut, "tangential u̇t", "--")):
+        for k, kind in enumerate(("ball–ball", "ball–wall")):
+            ax.plot(centres, log_pdf(hist[k], SPEED_BINS), ls=ls, color=f"C{k}", label=f"{name}, {kind}")
+    ax.set(xscale="log", xlabel="onset relative speed (mm/s)", ylabel="probability density (1/decade)",
+           title="Onset velocity distributions")
+    ax.legend()
+
+
+def draw_se(ax, a: RunAnalysis):
+    centres = np.sqrt(ENERGY_BINS[1:] * ENERGY_BINS[:-1]) * MM
+    n = a.event.hist_se_n.sum(axis=0)
+    t = a.event.hist_se_t.sum(axis=0)
+    ax.plot(centres, log_pdf(n, ENERGY_BINS), label="normal")
+    ax.plot(centres, log_pdf(t, ENERGY_BINS), label="tangential")
+    r = a.event.result(a.tau)
+    for key, c in (("mean_se_normal", "C0"), ("mean_se_tangential", "C1")):
+        if np.isfinite(r[key]):
+            ax.axvline(r[key] * MM, color=c, ls=":", lw=1)
+    ax.set(xscale="log", xlabel="stress energy per event (mJ)", ylabel="probability density (1/decade)",
+           title=f"Stress energy ({_estimator(a)}); dotted: means")
+    ax.legend()
+
+
+def _estimator(a: RunAnalysis) -> str:
+    return "event estimator" + (f", u̇n ≥ {a.event.min_un * MM:g} mm/s" if a.event.min_un > 0 else "")
+
+
+def draw_contact_map(ax, a: RunAnalysis, fig):
+    side = a.contacts["side"]
+    order = np.argsort(side["un"])
+    un = np.maximum(side["un"][order], 1e-5) * MM
+    sc = ax.scatter(side["arc_length"][order] * MM, side["z"][order] * MM, c=un, s=2, cmap="viridis",
+                    norm=LogNorm(vmin=max(un.min(), 1e-2), vmax=max(un.max(), 1.0)) if len(un) else None)
+    _wall_axes(ax, a)
+    ax.set_title("Ball–jar impacts on the unrolled side wall")
+    if len(un):
+        fig.colorbar(sc, ax=ax, label="onset normal speed u̇n (mm/s)")
+
+
+def _wall_axes(ax, a: RunAnalysis):
+    g = a.geom
+    ax.set(xlim=(0, g.perimeter * MM), ylim=(0, g.height * MM), xlabel="position along the wall (mm, CCW from +x)",
+           ylabel="height z (mm)")
+    top = ax.secondary_xaxis("top")
+    ticks = np.linspace(0, g.perimeter, 9)
+    top.set_xticks(ticks * MM, [f"{v:.0f}°" for v in g.wall_angle(ticks)])
+    top.set_xlabel("polar angle in the jar frame")
+
+
+def draw_wear_map(axes, a: RunAnalysis, fig):
+    """axes: (side, floor, lid)."""
+    tau = a.tau
+    both = {s: a.wall.density("impact", s, tau) + a.wall.density("friction", s, tau) for s in ("side", "floor", "lid")}
+    vals = np.concatenate([v[np.isfinite(v) & (v > 0)] for v in both.values()])
+    norm = LogNorm(vmin=max(vals.min(), vals.max() * 1e-4), vmax=vals.max()) if len(vals) else None
+    ax = axes[0]
+    im = ax.pcolormesh(a.wall.s_edges * MM, a.wall.z_edges * MM, np.ma.masked_less_equal(both["side"].T, 0), norm=norm,
+                       cmap="inferno")
+    _wall_axes(ax, a)
+    ax.set_title("Wear indicator: impact + friction power per area, side wall")
+    hot = a.wall.hot_spot(tau)
+    if hot.get("surface") == "side":
+        ax.plot(hot["arc_length"] * MM, hot["z"] * MM, "c+", ms=12, mew=2)
+    e = a.wall.xy_edges * MM
+    for ax, s in zip(axes[1:], ("floor", "lid")):
+        ax.pcolormesh(e, e, np.ma.masked_less_equal(both[s].T, 0), norm=norm, cmap="inferno")
+        _outline(ax, a)
+        if hot.get("surface") == s:
+            ax.plot(hot["x"] * MM, hot["y"] * MM, "c+", ms=12, mew=2)
+        ax.set(xlabel="x (mm)", ylabel="y (mm)", title=s)
+    fig.colorbar(im, ax=list(axes), label="W/m² (impact ½mu̇n² + friction work)", shrink=0.8)
+
+
+def draw_energy(ax, a: RunAnalysis):
+    en = a.store.energy
+    t = en["time"]
+    mech = en["kinetic"] + en["potential"] + en["elastic"]
+    ax.plot(t, en["drive_work"], label="drive work (walls on balls)")
+    ax.plot(t, en["dissipated"], label="dissipated by contacts")
+    ax.plot(t, mech - mech[0] if len(mech) else mech, label="kinetic + potential + elastic − initial")
+    ax.axvline(a.t0, color="0.5", ls=":", lw=1)
+    ax.set(xlabel="simulated time (s)", ylabel="energy (J)", title="Energy budget")
+    ax.legend(loc="upper left")
+    if len(t):
+        bal = (mech + en["dissipated"]) - (mech[0] + en["drive_work"])
+        scale = max(float(np.abs(en["drive_work"]).max()), 1e-300)
+        ax2 = ax.twinx()
+        ax2.plot(t, 100 * bal / scale, color="0.4", lw=0.7)
+        ax2.set_ylabel("balance error (% of drive work)", color="0.4")
+
+
+def _caption(a: RunAnalysis, what: str) -> str:
+    g = a.geom
+    return (f"{what}. Run {a.store.group.store}; K = {g.ratio:.3g}, Ω = {g.plate.end * 30 / np.pi:.4g} rpm, "
+            f"{g.n_balls} balls; window {a.t0:g}–{a.t1:g} s; {_estimator(a)}.")
+
+
+def _save(fig, path: Path, caption: str, title: str):
+    fmt = path.suffix.lstrip(".")
+    meta = {"Title": title, "Subject" if fmt == "pdf" else "Description": caption}
+    fig.savefig(path, metadata=meta)
+    plt.close(fig)
+
+
+FIGURES = {
+    "trajectories": "Ball trajectories in the jar frame: top view and section",
+    "g_r": "Cylindrical distribution function g(r) (thesis eq 3.9) and randomness index 1/σ",
+    "velocities": "Probability densities of the onset normal and tangential relative speeds (log bins)",
+    "stress_energy": "Distribution of the stress energy per collision event, normal and tangential",
+    "contact_map": "Ball–jar contact map: impact points on the unrolled side wall coloured by onset normal speed",
+    "wear_map": "Wear map: normal impact energy plus friction work per unit wall area and time",
+    "energy": "Energy budget over time: drive work, dissipation, mechanical energy, balance error",
+    "overview": "Overview of the run",
+}
+
+
+def write_report(a: RunAnalysis, out_dir, fmt: str = "png") -> list[Path]:
+    """Write every figure of FIGURES into out_dir as fmt; returns the paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+
+    def save(name, fig):
+        p = out / f"{name}.{fmt}"
+        _save(fig, p, _caption(a, FIGURES[name]), FIGURES[name])
+        paths.append(p)
+
+    fig, (t1, t2) = plt.subplots(1, 2, figsize=(9, 4), layout="constrained")
+    draw_trajectories_top(t1, a)
+    draw_trajectories_section(t2, a)
+    save("trajectories", fig)
+    for name, draw in (("g_r", draw_gr), ("velocities", draw_velocity_pdfs), ("stress_energy", draw_se),
+                       ("energy", draw_energy)):
+        fig, ax = plt.subplots(figsize=(5.5, 4), layout="constrained")
+        draw(ax, a)
+        save(name, fig)
+    fig, ax = plt.subplots(figsize=(8, 3.5), layout="constrained")
+    draw_contact_map(ax, a, fig)
+    save("contact_map", fig)
+    fig = plt.figure(figsize=(9, 6.5), layout="constrained")
+    gs = fig.add_gridspec(2, 2, height_ratios=(1, 1.4))
+    draw_wear_map((fig.add_subplot(gs[0, :]), fig.add_subplot(gs[1, 0]), fig.add_subplot(gs[1, 1])), a, fig)
+    save("wear_map", fig)
+    save("overview", overview(a))
+    return paths
+
+
+def overview(a: RunAnalysis):
+    fig = plt.figure(figsize=(16, 15), layout="constrained")
+    gs = fig.add_gridspec(4, 3, height_ratios=(1, 1, 0.8, 1))
+    draw_trajectories_top(fig.add_subplot(gs[0, 0]), a)
+    draw_gr(fig.add_subplot(gs[0, 1]), a)
+    draw_velocity_pdfs(fig.add_subplot(gs[0, 2]), a)
+    draw_se(fig.add_subplot(gs[1, 0]), a)
+    draw_energy(fig.add_subplot(gs[1, 1]), a)
+    draw_trajectories_section(fig.add_subplot(gs[1, 2]), a)
+    draw_contact_map(fig.add_subplot(gs[2, :]), a, fig)
+    draw_wear_map((fig.add_subplot(gs[3, 0]), fig.add_subplot(gs[3, 1]), fig.add_subplot(gs[3, 2])), a, fig)
+    q = a.quantities()
+    e = q["event_estimator"]
+    fig.suptitle(f"K = {a.geom.ratio:.3g}, Ω = {q['plate_rpm']:.4g} rpm — {q['regime']} "
+                 f"(confidence {q['regime_confidence']:.2f}); ⟨SE⟩ = {e['mean_se'] * MM:.3g} mJ, "
+                 f"E_I/τ = {e['impact_power']:.3g} W ({_estimator(a)}); dissipated {q['dissipated_power']:.3g} W",
+                 fontsize=11)
+    return fig

@@ -1,0 +1,108 @@
+"""What the analysis needs to know about a run, read back from its stored config
+(NumPy only): the jar profile and its unrolled wall, ball size and mass, the drive."""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from taimill.geometry import Profile, build_profile, profile_sdf
+from taimill.physics.frame_np import Ramp  # NumPy twin, no taichi
+
+SIDE, FLOOR, LID = -1, -2, -3  # body_j of wall events (sinks.EVENT_COLUMNS)
+
+
+@dataclass(frozen=True)
+class RunGeometry:
+    profile: Profile
+    height: float  #: m
+    ball_radius: float  #: m (the largest, for accessible regions)
+    ball_mass: float  #: kg
+    n_balls: int
+    plate_radius: float  #: m, R_p
+    plate: Ramp  #: Ω(t), rad/s
+    jar: Ramp  #: absolute jar spin w(t), rad/s
+    analysis_start: float  #: s
+    duration: float  #: s
+
+    @classmethod
+    def from_config(cls, config: dict, radii) -> "RunGeometry":
+        jar, balls = config["jar"], config["balls"]
+        prims = tuple((kind, dict(p)) for kind, p in jar["primitives"])
+        r = float(np.max(radii)) if len(radii) else float(balls["radius"])
+        rho = float(balls["material"]["density"])
+        ramp = float(config.get("ramp_time", 1.0))
+        return cls(
+            profile=build_profile(prims, float(jar.get("fillet", 0.0))), height=float(jar["height"]),
+            ball_radius=r, ball_mass=rho * 4.0 / 3.0 * math.pi * r**3, n_balls=len(radii),
+            plate_radius=float(config["plate_radius"]),
+            plate=Ramp(0.0, 0.0, float(config["plate_omega"]), ramp),
+            jar=Ramp(0.0, 0.0, float(config["jar_spin"]), ramp),
+            analysis_start=float(config.get("analysis_start", 0.0)), duration=float(config.get("duration", math.inf)),
+        )
+
+    @property
+    def volume(self) -> float:
+        """Jar volume (m³), for the densities of eq 4.1."""
+        return self.profile.area * self.height
+
+    @property
+    def jar_radius(self) -> float:
+        return self.profile.bounding_radius
+
+    @property
+    def ratio(self) -> float:
+        return self.jar.end / self.plate.end if self.plate.end else math.nan
+
+    def sdf(self, xy):
+        """Signed distance to the side wall (m, > 0 inside) and its gradient."""
+        return profile_sdf(self.profile, xy)
+
+    @functools.cached_property
+    def _unrolled(self):
+        """Outline as (polar angle unwrapped, arc length) with s = 0 at angle 0, CCW."""
+        xy = self.profile.outline
+        ang = np.arctan2(xy[:, 1], xy[:, 0])
+        i0 = int(np.argmin(np.abs(ang)))
+        xy = np.roll(xy, -i0, axis=0)
+        ang = np.unwrap(np.arctan2(xy[:, 1], xy[:, 0]))
+        ang -= 2 * math.pi * math.floor(ang[0] / (2 * math.pi) + 0.5)
+        seg = np.hypot(*np.diff(np.vstack([xy, xy[:1]]), axis=0).T)
+        s = np.concatenate([[0.0], np.cumsum(seg)])
+        ang = np.concatenate([ang, [ang[0] + 2 * math.pi]])
+        return ang, s
+
+    @property
+    def perimeter(self) -> float:
+        return float(self._unrolled[1][-1])
+
+    def arc_length(self, xy) -> np.ndarray:
+        """Position along the unrolled side wall (m, 0 … perimeter, CCW from the +x axis)
+        of points given in the jar frame; the profile is star-shaped, so the polar angle
+        picks the wall point uniquely."""
+        ang, s = self._unrolled
+        a = np.mod(np.arctan2(xy[:, 1], xy[:, 0]) - ang[0], 2 * math.pi) + ang[0]
+        return np.interp(a, ang, s)
+
+    def wall_angle(self, s) -> np.ndarray:
+        """Polar angle (deg, −180 … 180) of the wall point at arc length s."""
+        ang, arc = self._unrolled
+        a = np.interp(s, arc, ang)
+        return np.degrees(np.mod(a + math.pi, 2 * math.pi) - math.pi)
+
+
+def accessible_area(g: RunGeometry, edges: np.ndarray, n_theta: int = 720, sub: int = 16) -> np.ndarray:
+    """Area (m²) of each radial shell [edges_k, edges_k+1) a ball centre can occupy
+    (signed distance ≥ r_ball), by midpoint quadrature in polar coordinates."""
+    theta = (np.arange(n_theta) + 0.5) * 2 * math.pi / n_theta
+    out = np.zeros(len(edges) - 1)
+    for k in range(len(edges) - 1):
+        rho = edges[k] + (np.arange(sub) + 0.5) * (edges[k + 1] - edges[k]) / sub
+        rr, tt = np.meshgrid(rho, theta)
+        phi, _ = g.sdf(np.column_stack([(rr * np.cos(tt)).ravel(), (rr * np.sin(tt)).ravel()]))
+        cell = rr.ravel() * (edges[k + 1] - edges[k]) / sub * 2 * math.pi / n_theta
+        out[k] = np.sum(cell[phi >= g.ball_radius])
+    return out

@@ -1,0 +1,128 @@
+"""`taimill analyse RUN.zarr` (every SPEC §5 quantity, both estimators) and
+`taimill report RUN.zarr` (publication figures)."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+
+def _add_analysis_options(p):
+    p.add_argument("run", help="run store written by `taimill run --out` (RUN.zarr)")
+    p.add_argument("--analysis-start", type=float, help="start of the analysis window (s; default: the run's)")
+    p.add_argument("--min-un", type=float, default=0.0,
+                   help="event estimator: ignore events with onset normal speed below this (mm/s), e.g. 10 to drop chatter")
+    p.add_argument("--sampling-rate", type=float, default=100.0,
+                   help="sampled (thesis §3.3, MSC.Adams-like) estimator: output samples per second (default 100)")
+
+
+def register(sub):
+    a = sub.add_parser("analyse", help="every quantity of a stored run (event and sampled estimators)")
+    _add_analysis_options(a)
+    a.add_argument("--json", action="store_true", help="print one JSON object")
+    a.set_defaults(fn=cmd_analyse)
+    r = sub.add_parser("report", help="figures of a stored run (or of a sweep store)")
+    _add_analysis_options(r)
+    r.add_argument("--out", help="directory for the figures (default: RUN-report next to the store)")
+    r.add_argument("--format", choices=("png", "svg", "pdf"), default="png")
+    r.add_argument("--overlay", help="sweep stores only: measured series CSV drawn against K")
+    r.set_defaults(fn=cmd_report)
+
+
+def _open(a):
+    from taimill.analysis.run import analyse
+    from taimill.errors import ConfigError
+
+    if not Path(a.run).is_dir():
+        raise ConfigError("command line", "RUN", a.run, "an existing run store directory (RUN.zarr)")
+    return analyse(a.run, analysis_start=a.analysis_start, min_un=a.min_un * 1e-3, sampling_rate=a.sampling_rate)
+
+
+def cmd_analyse(a) -> int:
+    from taimill.cli import _plain
+
+    q = _open(a).quantities()
+    if a.json:
+        print(json.dumps(_plain(q)))
+        return 0
+    print(text_report(q))
+    return 0
+
+
+def cmd_report(a) -> int:
+    out = Path(a.out) if a.out else Path(str(Path(a.run)).rstrip("/").removesuffix(".zarr") + "-report")
+    if _is_sweep(a.run):
+        from taimill.sweepreport import report_sweep
+
+        paths = report_sweep(a.run, out, a.format, overlay=a.overlay)
+    else:
+        from taimill.analysis.report import write_report
+
+        if a.overlay:
+            from taimill.errors import ConfigError
+
+            raise ConfigError("command line", "--overlay", a.overlay, "only for sweep stores (taimill sweep --out)")
+        paths = write_report(_open(a), out, a.format)
+    for p in paths:
+        print(p)
+    return 0
+
+
+def _is_sweep(path) -> bool:
+    try:
+        from taimill.sweepstore import is_sweep
+    except ImportError:
+        return False
+    return Path(path).is_dir() and is_sweep(path)
+
+
+def _f(v, scale=1.0, unit=""):
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "–"
+    return f"{v * scale:.4g}{unit}"
+
+
+def text_report(q: dict) -> str:
+    e, s = q["event_estimator"], q["sampled_estimator"]
+    lines = [f"status: {q['status']}; window {q['analysis_window'][0]:g}–{q['analysis_window'][1]:g} s; "
+             f"K = {q['ratio']:.4g}, Ω = {q['plate_rpm']:.4g} rpm",
+             f"{'':34} {'event':>12} {s.get('estimator', 'sampled'):>16}"]
+    rows = (("events (sampled: points)", "events", "points", 1, ""),
+            ("impact power E_I/τ", "impact_power", "impact_power", 1, " W"),
+            ("  normal", "impact_power_normal", "impact_power_normal", 1, " W"),
+            ("  tangential", "impact_power_tangential", "impact_power_tangential", 1, " W"),
+            ("  ball–ball", "impact_power_ball_ball", "impact_power_ball_ball", 1, " W"),
+            ("  ball–wall", "impact_power_ball_wall", "impact_power_ball_wall", 1, " W"),
+            ("impact power density (eq 4.1)", "impact_power_density", "impact_power_density", 1e-6, " W/cm³"),
+            ("mean SE", "mean_se", "mean_se", 1e3, " mJ"),
+            ("  normal", "mean_se_normal", "mean_se_normal", 1e3, " mJ"),
+            ("  tangential", "mean_se_tangential", "mean_se_tangential", 1e3, " mJ"),
+            ("  ball–ball", "mean_se_ball_ball", "mean_se_ball_ball", 1e3, " mJ"),
+            ("  ball–wall", "mean_se_ball_wall", "mean_se_ball_wall", 1e3, " mJ"),
+            ("normal fraction", "normal_fraction", "normal_fraction", 1, ""))
+    for label, ke, ks, scale, unit in rows:
+        lines.append(f"{label:34} {_f(e.get(ke), scale, unit):>12} {_f(s.get(ks), scale, unit):>16}")
+    if e.get("min_un"):
+        lines.append(f"event estimator ignores u̇n < {e['min_un'] * 1e3:g} mm/s ({e['events_below_threshold']} events)")
+    if "error" in s:
+        lines.append(f"sampled estimator unavailable: {s['error']}")
+    crit = ", ".join(f"{k} {v:.3f}" for k, v in q["regime_criteria"].items())
+    h = q["wear_hot_spot"]
+    lines += [f"collision rate {_f(e.get('collision_rate'), 1, ' /s')}; dissipated power {_f(q['dissipated_power'], 1, ' W')}; "
+              f"energy balance error {_f(q['energy_balance_error'], 100, ' %')}",
+              f"randomness index 1/σ {_f(q['randomness_index'])}",
+              f"regime {q['regime']} (confidence {_f(q['regime_confidence'])}; {crit})",
+              f"critical ratio K_c {q['critical_ratio']:.3f}; one-ball hit energy {_f(q['single_ball_hit']['se'], 1e3, ' mJ')}"]
+    if h.get("surface"):
+        lines.append(f"wear hot spot: {h['surface']} at {h['angle_deg']:.0f}°"
+                     + (f", z = {h['z'] * 1e3:.1f} mm" if h["surface"] == "side" else "")
+                     + f", {h['power_per_area']:.4g} W/m² ({h['concentration']:.3g}× the wall mean)")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    from taimill.cli import main
+
+    sys.exit(main())

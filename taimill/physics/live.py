@@ -1,0 +1,342 @@
+"""One mill run interactively (the TUI's engine): advanced in short kernel chunks, with
+speeds, friction, jar and ball count changed while it runs.
+
+Physics of a live change (SPEC §2):
+- A speed change starts a new smoothstep `Ramp` from the angular velocities and
+  angles the drive has at the current simulated time, so Ω, w and the jar's angle are
+  continuous and the Euler terms Ω̇, ẇ are real. (Ω̇ itself may jump when a change
+  interrupts a ramp still in progress: the smoothstep starts from rest in Ω̇.)
+- The automatic time step follows the speeds (`params.max_impact_speed`): it is chosen
+  for the largest speed the new ramp passes through. The kernel computes t = step·dt,
+  so a new dt is rounded down to dt' = t/n, n = ⌈t/dt_target⌉, and the step counter set
+  to n: simulated time stays continuous to rounding (open contacts keep their onset
+  times, ramps their t0).
+- Friction is field data the next step reads (`mill.set_friction`).
+- Reset and a new jar or ball count restart the mill at t = 0 from the seeded placement,
+  ramping from rest to the current speeds (a new charge cannot continue the old one).
+
+Threads (NOTES.md): a kernel holds the GIL, so `advance` runs chunks of about
+`chunk_seconds` of wall time. New Taichi fields must be materialised in the thread that
+called ti.init: construct the LiveMill and call `rebuild` there (the UI thread);
+`advance` and the setters may run in any thread — every change of the fields goes
+through one lock (STYLE rule 6), and `advance` yields it between chunks to a waiting
+setter.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import math
+import threading
+import time
+
+import numpy as np
+
+from taimill.errors import ConfigError, SimulationUnstable
+from taimill.params import RPM, Preset, load_friction, load_preset, max_impact_speed
+from taimill.physics import laws_np
+from taimill.physics.frame_np import Ramp
+from taimill.physics.mill import from_preset, set_friction
+from taimill.physics.simulation import Runner
+from taimill.sinks import FanOut
+
+SOURCE = "TUI"  # names live input in ConfigError messages
+FOREVER = 2**62  # step target of a live mill: it runs until stopped
+CHUNK_SECONDS = 0.01  # wall s per kernel launch (NOTES.md: worst UI gap 132 ms at 10 ms)
+
+# Allowed ranges of live values: the preset's (params.load_preset), except Ω ≥ 0 (a
+# negative Ω is the mirror image of a positive one) and ball counts a terminal can draw.
+LIMITS = {
+    "plate_rpm": (0.0, 1000.0),
+    "ratio": (-10.0, 10.0),
+    "jar_rpm": (-3000.0, 3000.0),
+    "mu_s": (0.0, 10.0),
+    "mu_d": (0.0, 10.0),
+    "ramp_time": (0.01, 60.0),
+    "balls": (1, 2000),
+}
+UNITS = {"plate_rpm": " rpm", "jar_rpm": " rpm", "ramp_time": " s"}
+
+
+def check(key: str, value) -> float:
+    """value if it lies in LIMITS[key], else ConfigError naming key, value and range."""
+    lo, hi = LIMITS[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not lo <= value <= hi:
+        raise ConfigError(SOURCE, key, value, f"allowed range [{lo:g}, {hi:g}]{UNITS.get(key, '')}")
+    return value
+
+
+def wrap(angle: float) -> float:
+    """Angle in [-π, π] (rad): ramps restart from it, so φ stays small after hours."""
+    return math.remainder(angle, 2.0 * math.pi)
+
+
+def auto_dt(preset: Preset, plate_omega: float, jar_spin: float, fixed: float | None = None) -> float:
+    """The preset's time-step rule (params.load_preset) at speeds Ω, w (rad/s): auto dt,
+    or a preset's fixed dt (s) where that is still below it."""
+    v = max_impact_speed(plate_omega, jar_spin, preset.plate_radius, preset.jar, preset.gravity)
+    dt = laws_np.auto_dt((preset.ball_ball, preset.ball_wall), v)
+    return dt if fixed is None else min(fixed, dt)
+
+
+class LiveMill:
+    """A `Runner` of one mill that runs until stopped and takes live changes.
+
+    preset: the starting point (its speeds, friction, dt are kept up to date as
+    `self.preset`); overrides: the command-line overrides it was loaded with (a rebuild
+    reloads the preset file with them)."""
+
+    def __init__(self, preset: Preset, overrides: dict | None = None, *, chunk_seconds: float = CHUNK_SECONDS):
+        self.overrides = {k: v for k, v in (overrides or {}).items() if v is not None}
+        self.chunk_seconds = chunk_seconds
+        self._lock = threading.Lock()
+        self._count_lock = threading.Lock()
+        self._waiting = 0
+        self.dt_fixed = None if preset.dt_auto else preset.dt  #: s, a preset's explicit dt
+        self._sinks: list = []
+        self._out = FanOut()
+        self._step_cost = 1e-6  # wall s per step, refined by every chunk
+        self._start(preset)
+
+    # ------------------------------------------------------------------ set-up
+    def _start(self, preset: Preset):
+        """Load preset into a fresh Runner at t = 0 (speeds ramp up from rest)."""
+        spec = from_preset(preset, preset.duration).replace(steps=FOREVER)
+        self.preset = preset
+        self.runner = Runner([spec])
+        self.runner.engine.advance(0)  # compile / materialise now, in the calling thread
+        self.plate, self.jar = spec.plate, spec.jar
+
+    @property
+    def spec(self):
+        return self.runner.specs[0]
+
+    @property
+    def F(self):
+        return self.runner.engine.F
+
+    # ------------------------------------------------------------------ reading
+    @property
+    def time(self) -> float:
+        """Simulated time, s."""
+        return self.runner.time(0)
+
+    @property
+    def dt(self) -> float:
+        return self.spec.dt
+
+    @property
+    def n_balls(self) -> int:
+        return self.spec.n
+
+    @property
+    def radius(self) -> np.ndarray:
+        return self.spec.radius
+
+    @property
+    def plate_rpm(self) -> float:
+        """Target plate speed Ω, rpm."""
+        return self.plate.end / RPM
+
+    @property
+    def jar_rpm(self) -> float:
+        """Target jar speed relative to the plate, ω = w - Ω, rpm."""
+        return (self.jar.end - self.plate.end) / RPM
+
+    @property
+    def ratio(self) -> float:
+        """Target K = w/Ω (nan for Ω = 0)."""
+        return self.jar.end / self.plate.end if self.plate.end else math.nan
+
+    @property
+    def friction(self):
+        return self.spec.friction
+
+    def drive(self, t: float | None = None) -> dict:
+        """Ω, Ω̇, φ_plate and w, ẇ, φ_jar (rad/s, rad/s², rad) at time t (default now)."""
+        t = self.time if t is None else t
+        om, om_dot, phi_p = self.plate.at(t)
+        w, w_dot, phi_j = self.jar.at(t)
+        return {"plate": om, "plate_accel": om_dot, "plate_angle": phi_p, "jar": w, "jar_accel": w_dot, "jar_angle": phi_j}
+
+    def state(self) -> dict:
+        """The current state: time (s), position, velocity (N, 3) jar frame, spin, and
+        ψ = φ_plate - φ_jar (rad, the direction away from the plate axis)."""
+        with self._locked():
+            t = self.time
+            s = self.runner.final_state(0)
+        d = self.drive(t)
+        return {"time": t, "position": s["x"], "velocity": s["v"], "spin": s["s"],
+                "psi": d["plate_angle"] - d["jar_angle"], "plate": d["plate"], "jar": d["jar"]}
+
+    def config(self) -> dict:
+        """The resolved configuration now (for a sink started mid-run), JSON-able."""
+        return self.preset.as_dict() | {"live_start_time": self.time}
+
+    # ------------------------------------------------------------------ sinks
+    def add_sink(self, sink):
+        """Stream everything from now on to sink (its start() is called here)."""
+        with self._locked():
+            sink.start(self.config(), self.n_balls, self.radius)
+            self._sinks.append(sink)
+            self._out = FanOut(*self._sinks)
+
+    def remove_sink(self, sink, summary: dict | None = None, status: str = "stopped"):
+        """Stop streaming to sink and finish it."""
+        with self._locked():
+            if sink in self._sinks:
+                self._sinks.remove(sink)
+                self._out = FanOut(*self._sinks)
+        sink.finish(summary or {}, status)
+
+    # ------------------------------------------------------------------ running
+    @contextlib.contextmanager
+    def _locked(self):
+        """The field lock; a setter announces itself so `advance` yields between chunks."""
+        with self._count_lock:
+            self._waiting += 1
+        try:
+            self._lock.acquire()
+        finally:
+            with self._count_lock:
+                self._waiting -= 1
+        try:
+            yield
+        finally:
+            self._lock.release()
+
+    def _chunk(self, max_steps: int) -> int:
+        """One kernel launch of at most max_steps steps; returns the steps taken."""
+        while self._waiting:  # let a waiting setter in first (CPython locks are not fair)
+            time.sleep(0.0005)
+        with self._lock:
+            room = (self.F.frame_capacity - 2) * self.spec.frame_every
+            n = max(1, min(max_steps, room, int(self.chunk_seconds / self._step_cost)))
+            self.runner.steps_per_launch = n
+            before = int(self.F.step[0])
+            t0 = time.perf_counter()
+            fault = self.runner.launch([self._out])[0]
+            wall = time.perf_counter() - t0
+            taken = int(self.F.step[0]) - before
+        if fault:
+            raise SimulationUnstable(fault)
+        if taken:
+            self._step_cost = 0.7 * self._step_cost + 0.3 * wall / taken
+        return taken
+
+    def advance(self, *, wall_budget: float | None = None, steps: int | None = None) -> float:
+        """Run for about wall_budget wall seconds, or exactly `steps` steps, in chunks of
+        ≈ chunk_seconds; returns the simulated seconds advanced. Raises
+        SimulationUnstable (everything up to the fault has reached the sinks)."""
+        if (wall_budget is None) == (steps is None):
+            raise ValueError("give wall_budget or steps")
+        t_start, wall0 = self.time, time.perf_counter()
+        left = steps
+        while True:
+            taken = self._chunk(left if steps is not None else FOREVER)
+            if steps is not None:
+                left -= taken
+                if left <= 0:
+                    break
+            elif time.perf_counter() - wall0 >= wall_budget:
+                break
+        return self.time - t_start
+
+    # ------------------------------------------------------------------ live changes
+    def set_speeds(self, plate_rpm: float | None = None, *, ratio: float | None = None,
+                   jar_rpm: float | None = None, ramp_time: float | None = None):
+        """New target speeds, reached by a smooth ramp from the current ones.
+        plate_rpm: Ω; jar speed as ratio K = w/Ω or jar_rpm ω = w - Ω (relative to the
+        plate); with neither, K is kept (ω when Ω was 0). ramp_time (s) defaults to
+        the preset's start-up ramp."""
+        if ratio is not None and jar_rpm is not None:
+            raise ConfigError(SOURCE, "jar_rpm", jar_rpm, "give either ratio or jar_rpm, not both")
+        om = check("plate_rpm", plate_rpm) * RPM if plate_rpm is not None else self.plate.end
+        if ratio is not None:
+            w = check("ratio", ratio) * om
+        elif jar_rpm is not None:
+            w = check("jar_rpm", jar_rpm) * RPM + om
+        elif self.plate.end:
+            w = self.jar.end / self.plate.end * om
+        else:
+            w = self.jar.end - self.plate.end + om
+        T = check("ramp_time", ramp_time) if ramp_time is not None else self.preset.ramp_time
+        dt = auto_dt(self.preset, self._peak(self.plate, om), self._peak(self.jar, w), self.dt_fixed)
+        with self._locked():
+            t = self.time
+            d = self.drive(t)
+            self.plate = Ramp(t, d["plate"], om, T, wrap(d["plate_angle"]))
+            self.jar = Ramp(t, d["jar"], w, T, wrap(d["jar_angle"]))
+            self.F.plate_ramp[0] = self.plate.as_tuple()
+            self.F.jar_ramp[0] = self.jar.as_tuple()
+            self.runner.specs[0] = self.spec.replace(plate=self.plate, jar=self.jar)
+            self.preset = dataclasses.replace(self.preset, plate_omega=om, jar_spin=w, ramp_time=T)
+            self._set_dt(dt)
+
+    def _peak(self, ramp: Ramp, target: float) -> float:
+        """Largest |speed| from now to the end of a new ramp to target (ramps are monotone)."""
+        now = ramp.at(self.time)[0]
+        still_ramping = self.time < ramp.t0 + ramp.duration
+        return max(abs(now), abs(target), abs(ramp.end) if still_ramping else 0.0)
+
+    def _set_dt(self, dt_target: float):
+        """Switch to a step ≤ dt_target keeping t = step·dt (lock held)."""
+        if math.isclose(dt_target, self.dt, rel_tol=1e-9):
+            return
+        t = self.time
+        n = math.ceil(t / dt_target * (1 - 1e-12)) if t > 0 else 0
+        dt = t / n if n else dt_target
+        every = max(1, int(round(1.0 / (self.preset.trajectory_rate * dt))))
+        self.F.dt[0] = dt
+        self.F.step[0] = n
+        self.F.frame_every[0] = every
+        self.runner.specs[0] = self.spec.replace(dt=dt, frame_every=every)
+        self.preset = dataclasses.replace(self.preset, dt=dt)
+
+    def set_friction(self, mu_s: float | None = None, mu_d: float | None = None, *, pair: str | None = None):
+        """Friction from now on: a pair's coefficients (same contact set as the balls
+        and jar), then μ_s / μ_d if given. μ_d ≤ μ_s (SPEC §7)."""
+        fr = self.friction
+        if pair is not None:
+            fr, contact = load_friction(pair, SOURCE)
+            _, current = load_friction(self.preset.pair, SOURCE)
+            if contact != current:
+                raise ConfigError(SOURCE, "pair", pair, f"is for the '{contact}' contact set; these balls and jar use '{current}'")
+        mu_s = check("mu_s", mu_s) if mu_s is not None else fr.mu_s
+        mu_d = check("mu_d", mu_d) if mu_d is not None else fr.mu_d
+        if mu_d > mu_s:
+            raise ConfigError(SOURCE, "mu_d", mu_d, f"dynamic friction must not exceed static mu_s = {mu_s:g}; allowed range [0, {mu_s:g}]")
+        name = fr.name if (mu_s, mu_d) == (fr.mu_s, fr.mu_d) else f"{(pair or self.preset.pair)} (tuned)"
+        fr = dataclasses.replace(fr, name=name, mu_s=mu_s, mu_d=mu_d)
+        with self._locked():
+            set_friction(self.F, 0, fr)
+            self.runner.specs[0] = self.spec.replace(friction=fr)
+            self.preset = dataclasses.replace(self.preset, friction=fr, pair=pair or self.preset.pair)
+
+    def reset(self):
+        """Back to t = 0: the seeded placement, ramping from rest to the current targets."""
+        with self._locked():
+            p = self.preset
+            self._start(dataclasses.replace(p, dt=auto_dt(p, p.plate_omega, p.jar_spin, self.dt_fixed)))
+
+    def rebuild(self, *, jar: str | None = None, balls: int | None = None):
+        """A new jar (name in jars/ or path) and/or ball count, restarting at t = 0 with
+        the current speeds and friction. Call from the ti.init thread: a ball count
+        beyond the padded capacity of the current engine allocates new fields."""
+        p = self.preset
+        if balls is not None:
+            check("balls", balls)
+        over = {k: v for k, v in self.overrides.items() if k != "ratio"}
+        over.update({"jar": jar or over.get("jar"), "balls.count": balls or p.balls.count,
+                     "plate_rpm": p.plate_omega / RPM, "jar_rpm": (p.jar_spin - p.plate_omega) / RPM,
+                     "ramp_time": p.ramp_time})
+        try:
+            new = load_preset(p.source, over)
+        except ConfigError as err:
+            raise (ConfigError(SOURCE, err.key, err.value, err.allowed) if err.source == "command line" else err) from None
+        if load_friction(new.pair, SOURCE)[1] == load_friction(p.pair, SOURCE)[1]:
+            new = dataclasses.replace(new, friction=p.friction, pair=p.pair)
+        with self._locked():
+            self._start(new)
+        self.overrides.update({k: over[k] for k in ("jar", "balls.count") if over[k] is not None})

@@ -1,0 +1,133 @@
+"""`taimill record RUN.zarr --rrd RUN.rrd` (a stored run as a rerun recording) and
+`taimill view RUN.rrd` (the rerun viewer shipped with rerun-sdk).
+
+`record` replays the store through the same `RerunSink` a live run feeds (no second
+path): in blocks of REPLAY_SECONDS, the events that ended by the block's last frame,
+then the frames, then their ledger rows — the order and kind of blocks a live run
+emits."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+EXIT_NO_DISPLAY = 4
+REPLAY_SECONDS = 0.05  # simulated seconds per replayed block, as a live launch
+
+
+def _existing(path: str, key: str) -> Path:
+    from taimill.errors import ConfigError
+
+    p = Path(path)
+    if not p.exists():
+        raise ConfigError("command line", key, path, "no such file or directory")
+    return p
+
+
+def check_output(path: str, overwrite: bool) -> None:
+    from taimill.errors import ConfigError
+
+    if not path.endswith(".rrd"):
+        raise ConfigError("command line", "--rrd", path, "a recording file name ending in .rrd")
+    if Path(path).exists() and not overwrite:
+        raise ConfigError("command line", "--rrd", path, "exists; pass --overwrite to replace it")
+
+
+def replay(store, sink) -> None:
+    """Stream a `RunStore`'s tables into `sink` as a live run would (module doc)."""
+    import numpy as np
+
+    frames, events, energy = store.frames, store.events, store.energy
+    t = frames["time"]
+    ends = events["t_start"] + events["duration"]
+    sink.start(store.config, store.n_balls, store.radii)
+    status = store.status or "unknown"
+    try:
+        begin, done = 0, -np.inf
+        while begin < len(t):
+            stop = int(np.searchsorted(t, t[begin] + REPLAY_SECONDS, side="right"))
+            last = t[stop - 1] if stop < len(t) else np.inf  # the last block takes every event left
+            pick = (ends > done) & (ends <= last)
+            if pick.any():
+                sink.events({k: v[pick] for k, v in events.items()})
+            sink.frames({k: v[begin:stop] for k, v in frames.items()})
+            sink.energy({k: v[begin:stop] for k, v in energy.items()})
+            begin, done = stop, last
+    finally:
+        sink.finish(store.summary or {}, status)
+
+
+def cmd_record(a) -> int:
+    from taimill.errors import ConfigError
+    from taimill.recording import RerunSink
+    from taimill.store import open_run
+
+    check_output(a.rrd, a.overwrite)
+    source = _existing(a.run, "RUN.zarr")
+    try:
+        store = open_run(source)
+    except Exception as err:  # zarr raises several kinds for a directory that is no store
+        raise ConfigError("command line", "RUN.zarr", a.run, f"not a taimill run store ({err})") from None
+    if store.config is None or not len(store.frames["time"]):
+        raise ConfigError("command line", "RUN.zarr", a.run, "a run store with a config and at least one frame")
+    replay(store, RerunSink(a.rrd, lab_frame=a.lab_frame, histogram_every=a.histogram_every))
+    print(f"{a.rrd}: {len(store.frames['time'])} frames, {len(store.events['t_start'])} events "
+          f"(run status: {store.status}); open it with `taimill view {a.rrd}`")
+    return 0
+
+
+def viewer_binary() -> str | None:
+    """The `rerun` executable shipped with rerun-sdk, next to this interpreter, else on PATH."""
+    local = Path(sys.executable).parent / "rerun"
+    return str(local) if local.exists() else shutil.which("rerun")
+
+
+def has_display() -> bool:
+    """False on a Linux machine without an X11 or Wayland display."""
+    return not sys.platform.startswith("linux") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def cmd_view(a) -> int:
+    path = _existing(a.rrd, "RUN.rrd")
+    binary = viewer_binary()
+    if binary is None:
+        print("taimill: the rerun viewer is not installed (pip install rerun-sdk)", file=sys.stderr)
+        return EXIT_NO_DISPLAY
+    if a.web:
+        return subprocess.call([binary, "--web-viewer", str(path)])
+    if not has_display():
+        print(f"taimill: no display here (DISPLAY and WAYLAND_DISPLAY are unset), so the rerun viewer cannot "
+              f"open a window. Copy {path} to a machine with a screen and run `rerun {path.name}`, or serve it "
+              f"to a browser with `taimill view {path} --web`.", file=sys.stderr)
+        return EXIT_NO_DISPLAY
+    return subprocess.call([binary, str(path)])
+
+
+def register(sub) -> None:
+    r = sub.add_parser("record", help="convert a stored run (RUN.zarr) into a rerun recording (.rrd)")
+    r.add_argument("run", metavar="RUN.zarr", help="run store written by `taimill run --out`")
+    r.add_argument("--rrd", required=True, metavar="RUN.rrd", help="recording to write")
+    r.add_argument("--overwrite", action="store_true", help="replace an existing --rrd file")
+    r.add_argument("--lab-frame", action="store_true", help="also record the jar moving on the plate")
+    r.add_argument("--histogram-every", type=_positive, default=1.0, metavar="S",
+                   help="period of the onset-speed histograms (simulated s, default 1)")
+    r.set_defaults(fn=cmd_record)
+    v = sub.add_parser("view", help="open a recording in the rerun viewer")
+    v.add_argument("rrd", metavar="RUN.rrd")
+    v.add_argument("--web", action="store_true", help="serve the web viewer instead of opening a window (headless machines)")
+    v.set_defaults(fn=cmd_view)
+
+
+def _positive(text: str) -> float:
+    import argparse
+
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: a number of seconds > 0")
+    return value

@@ -45,7 +45,7 @@ def register(subparsers) -> None:
     o.add_argument("--law", help="normal contact law")
     x = s.add_argument_group("execution")
     x.add_argument("--workers", type=int, help="local worker processes (default: one per core)")
-    x.add_argument("--batch", type=int, help="mills per kernel, B (default 2, measured)")
+    x.add_argument("--batch", type=int, help="mills per kernel, B (default: 1 for small sweeps, see sweep.auto_batch)")
     x.add_argument("--scheduler", metavar="ADDRESS", help="dask.distributed scheduler, e.g. tcp://host:8786")
     s.add_argument("--out", help="sweep store to write (SWEEP.zarr); the same command resumes it")
     s.add_argument("--overwrite", action="store_true", help="replace an existing --out store")
@@ -55,7 +55,7 @@ def register(subparsers) -> None:
 
 def request(a):
     """Validated sweep.Request from the parsed arguments."""
-    from taimill.sweep import DEFAULT_BATCH, Request, parse_values
+    from taimill.sweep import Request, parse_values
 
     axes = {}
     for key, opt, kind in (("ratio", "--ratio", float), ("plate_rpm", "--plate-rpm", float), ("pair", "--pair", str),
@@ -83,7 +83,7 @@ def request(a):
         raise ConfigError("command line", "--ratio", a.ratio, "--refine needs a K range of at least 3 values")
     req = Request(a.preset, overrides, axes, a.replicas, a.refine_metric if a.refine else None,
                   a.refine_rounds if a.refine else 0)
-    return req, dict(batch=a.batch or DEFAULT_BATCH, workers=a.workers, scheduler=a.scheduler)
+    return req, dict(batch=a.batch, workers=a.workers, scheduler=a.scheduler)
 
 
 def cmd_sweep(a) -> int:

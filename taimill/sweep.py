@@ -25,12 +25,20 @@ from taimill.sweepstore import SweepStore, scalars
 AXES = ("jar", "balls.count", "pair", "plate_rpm", "ratio")
 CURVE_AXES = ("jar", "balls", "pair", "plate_rpm")  # table columns telling curves apart
 MAX_POINTS = 10_000
-# Mills per kernel and local processes. Measured on the 2-core machine (README "Sweeps"):
-# B mills on one thread cost B times one mill (µs per mill-step flat within noise for
-# B = 1, 2, 4), and two processes on two cores give 2x; so B only amortises launches and
-# drains, while small chunks balance the load between processes: B = 2 and one process
-# per core.
-DEFAULT_BATCH = 2
+MAX_AUTO_BATCH = 16
+
+
+def auto_batch(n_points: int, workers: int) -> int:
+    """Mills per kernel B. Measured on the 2-core machine (CY steel, K = -2.6, 3 s per
+    mill, one thread): 0.535, 0.550, 0.58 µs per mill-step for B = 1, 2, 4, i.e. a
+    batch costs B single mills: launches of ≥ 10⁴ steps already amortise the ≈ 30 µs
+    launch, and B mills on one thread run one after another (the engine pads each mill
+    to its own ≥ 512-iteration task, so B > 1 could also spread over threads, but
+    sweeps use one process per core instead: NOTES.md). So B buys little speed and
+    costs load balance; it only cuts per-chunk overhead (a task round trip, a result
+    hand-over) in large sweeps: B = 1 up to 8 chunks per worker, then growing to keep
+    about 8 chunks per worker, at most MAX_AUTO_BATCH."""
+    return max(1, min(MAX_AUTO_BATCH, n_points // (8 * max(1, workers))))
 
 
 def parse_values(text: str, key: str, kind=float) -> list:
@@ -125,8 +133,8 @@ def plan(req: Request, ratios_for=None) -> list[dict]:
 
 def point_values(p, replica: int) -> dict:
     """The table's description of a resolved preset (SI radii, rpm)."""
-    return {"jar": p.jar.name, "balls": p.balls.count, "pair": p.pair, "plate_rpm": p.plate_omega * 30 / math.pi,
-            "ratio": p.ratio, "seed": p.seed, "replica": replica, "plate_radius": p.plate_radius,
+    return {"jar": p.jar.name, "balls": p.balls.count, "pair": p.pair, "plate_rpm": round(p.plate_omega * 30 / math.pi, 9),
+            "ratio": round(p.ratio, 10), "seed": p.seed, "replica": replica, "plate_radius": p.plate_radius,
             "jar_radius": p.jar.radius, "ball_radius": p.balls.radius, "duration": p.duration}
 
 
@@ -158,9 +166,11 @@ class Progress:
             self.callback(sum(self.parts.values()), self.total)
 
 
-def execute(points, store: SweepStore | None, *, batch=DEFAULT_BATCH, workers=None, scheduler=None,
+def execute(points, store: SweepStore | None, *, batch=None, workers=None, scheduler=None,
             progress=None) -> dict[int, dict]:
-    """Run the points not yet in the store; returns {point index: table row} for all."""
+    """Run the points not yet in the store in chunks of `batch` mills (default
+    auto_batch) on `workers` local processes (default one per core) or the dask
+    scheduler at `scheduler`; returns {point index: table row} for all points."""
     if store is not None:
         index = store.add_points(points)
         done = store.done()
@@ -169,21 +179,22 @@ def execute(points, store: SweepStore | None, *, batch=DEFAULT_BATCH, workers=No
     jobs = [Job(i, p["preset"]) for i, p in zip(index, points) if i not in done]
     jobs = list({j.index: j for j in jobs}.values())
     rows = {}
-    all_chunks = chunks(jobs, batch)
+    workers = workers or os.cpu_count() or 1
+    all_chunks = chunks(jobs, batch or auto_batch(len(jobs), workers))
     if all_chunks:
         prog = Progress(all_chunks, progress)
         keep = store is not None
         if scheduler:
             stream = run_dask(all_chunks, scheduler, keep, prog)
         else:
-            stream = run_local(all_chunks, max(1, min(workers or os.cpu_count() or 1, len(all_chunks))), keep, prog)
+            stream = run_local(all_chunks, min(workers, len(all_chunks)), keep, prog)
         for results in stream:
             for r in results:
                 if store is not None:
                     store.write_point(r)
                 rows[r.index] = r.summary
     if store is None:
-        return {i: {"point": i, **p["values"], **scalars(rows[i])} for i, p in zip(index, points)}
+        return {i: {"point": i, **scalars(rows[i]), **p["values"]} for i, p in zip(index, points)}
     table = store.table()
     where = {int(v): k for k, v in enumerate(table["point"])}
     return {i: {name: _py(col[where[i]]) for name, col in table.items()} for i in index}
@@ -200,32 +211,37 @@ def curve_of(row: dict) -> tuple:
 def run_sweep(req: Request, store: SweepStore | None = None, **run_kw) -> tuple[list[dict], list[dict]]:
     """Grid, then `refine_rounds` rounds of refinement per curve; returns (rows in plan
     order, peaks per curve of the refine metric — empty without refinement)."""
-    points = plan(req)
-    rows = execute(points, store, **run_kw)
-    peaks = []
-    if req.refine_metric:
-        for _ in range(req.refine_rounds):
-            extra = _refinement(rows, req.refine_metric)
-            if not extra:
-                break
-            rows |= execute(plan(req, lambda fixed: extra.get(_fixed_curve(fixed, rows), [])), store, **run_kw)
-        peaks = peaks_by_curve(rows.values(), req.refine_metric)
-        if store is not None:
-            store.set_refine({"metric": req.refine_metric, "rounds": req.refine_rounds, "peaks": peaks})
+    rows = execute(plan(req), store, **run_kw)
+    if not req.refine_metric:
+        return [rows[i] for i in sorted(rows)], []
+
+    def evaluate(extra: dict) -> dict:
+        return execute(plan(req, lambda fixed: extra.get(_fixed_curve(fixed, rows), [])), store, **run_kw)
+
+    rows, peaks = refine(rows, req.refine_metric, req.refine_rounds, evaluate)
+    if store is not None:
+        store.set_refine({"metric": req.refine_metric, "rounds": req.refine_rounds, "peaks": peaks})
     return [rows[i] for i in sorted(rows)], peaks
 
 
-def _refinement(rows: dict, metric: str) -> dict:
-    """curve → new K values of this refinement round."""
-    by_curve: dict = {}
-    for r in rows.values():
-        by_curve.setdefault(curve_of(r), []).append(r)
-    out = {}
-    for curve, rs in by_curve.items():
-        new = refine_candidates([r["ratio"] for r in rs], [r.get(metric, math.nan) for r in rs])
-        if new:
-            out[curve] = new
-    return out
+def refine(rows: dict, metric: str, rounds: int, evaluate) -> tuple[dict, list[dict]]:
+    """`rounds` rounds of sweepstats.refine_candidates per curve; evaluate({curve:
+    [K, …]}) simulates the new K values (all replicas) and returns their rows by index.
+    Returns (all rows, parabolic peak per curve)."""
+    rows = dict(rows)
+    for _ in range(rounds):
+        by_curve: dict = {}
+        for r in rows.values():
+            by_curve.setdefault(curve_of(r), []).append(r)
+        extra = {}
+        for curve, rs in by_curve.items():
+            new = refine_candidates([r["ratio"] for r in rs], [r.get(metric, math.nan) for r in rs])
+            if new:
+                extra[curve] = new
+        if not extra:
+            break
+        rows |= evaluate(extra)
+    return rows, peaks_by_curve(rows.values(), metric)
 
 
 def _fixed_curve(fixed: dict, rows: dict) -> tuple:

@@ -134,7 +134,7 @@ class SweepStore:
         self._write_row(result.index, result.summary)
 
     def _write_row(self, i: int, summary: dict) -> None:
-        row = {"point": i, **self.plan[i]["values"], **scalars(summary)}
+        row = {"point": i, **scalars(summary), **self.plan[i]["values"]}  # the swept values as asked
         table = self.root["table"]
         n = len(self.plan)
         for name, value in row.items():

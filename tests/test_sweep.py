@@ -1,0 +1,268 @@
+"""Sweeps (SPEC §9): planning and validation, sweep points bit-identical to `taimill run`
+on local spawned processes and on a real dask LocalCluster, resuming, replicas' bands,
+refinement of a maximum, sweep figures and the measured-data overlay."""
+
+import contextlib
+import io
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from taimill import cli
+from taimill.errors import ConfigError
+from taimill.store import ZarrSink, open_run
+from taimill.sweep import auto_batch, chunks, parse_values, refine
+from taimill.sweepexec import Job, PointResult
+from taimill.sweepreport import band, read_overlay, report_sweep
+from taimill.sweepstats import mean_band, parabolic_peak, t_quantile
+from taimill.sweepstore import SweepStore, is_sweep, open_sweep
+
+ROOT = Path(__file__).resolve().parent.parent
+PRESET = "presets/p4-cy-steel.toml"
+# 3 K x 2 replicas of 0.3 s: chunks of B = 2 mills with different automatic dt share
+# one kernel, on 2 spawned processes.
+SWEEP = ("sweep", PRESET, "--ratio", "-2:-3:0.5", "--replicas", 2, "--duration", 0.3, "--batch", 2)
+TIMING = {"wall_seconds", "realtime_factor", "batch"}
+
+
+def taimill(*args):
+    return subprocess.run([sys.executable, "-m", "taimill.cli", *map(str, args)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def local_sweep(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sweep") / "local.zarr"
+    res = taimill(*SWEEP, "--workers", 2, "--out", out, "--json")
+    assert res.returncode == 0, res.stderr
+    return out, json.loads(res.stdout)
+
+
+# ---------------------------------------------------------------- planning
+def test_parse_values_ranges_lists_and_rounding():
+    assert parse_values("0:-1:0.25", "--ratio") == [0.0, -0.25, -0.5, -0.75, -1.0]
+    assert parse_values("0:-1:-0.25", "--ratio") == parse_values("0:-1:0.25", "--ratio")  # sign from A → B
+    assert parse_values("0:-4:0.2", "--ratio")[13] == -2.6  # exactly the typed -2.6 (same run)
+    assert len(parse_values("0:-4:0.2", "--ratio")) == 21
+    assert parse_values("-2.6", "--ratio") == [-2.6]
+    assert parse_values("6,12,24", "--balls", int) == [6, 12, 24]
+    assert parse_values("steel-steel, steel-fluorite", "--pair", str) == ["steel-steel", "steel-fluorite"]
+
+
+@pytest.mark.parametrize("text, kind, why", [
+    ("0:-4:0", float, "STEP ≠ 0"), ("0:-4", float, "A:B:STEP"), ("a:b:c", float, "numbers"),
+    ("1,1", float, "repeated"), ("6,x", int, "integers"), ("0:-1e9:1e-4", float, "at most"),
+    ("steel-steel,", str, "no empty entry"), ("nan", float, "finite"),
+])
+def test_parse_values_rejects_bad_input(text, kind, why):
+    with pytest.raises(ConfigError, match=why) as err:
+        parse_values(text, "--ratio", kind)
+    assert err.value.source == "command line" and err.value.key == "--ratio"
+
+
+def test_chunks_group_engines_and_put_the_costliest_first():
+    def job(i, n, dt, jar="CY"):
+        return Job(i, SimpleNamespace(balls=SimpleNamespace(count=n), jar=SimpleNamespace(name=jar), duration=1.0, dt=dt))
+
+    jobs = [job(0, 12, 2e-6), job(1, 12, 1e-6), job(2, 24, 2e-6), job(3, 12, 1.5e-6), job(4, 12, 3e-6, "HM")]
+    got = [[j.index for j in c] for c in chunks(jobs, 2)]
+    assert got == [[1, 3], [2], [0], [4]]  # one ball count and jar per chunk; costs 20e6, 12e6, 6e6, 4e6 ball-steps
+    assert auto_batch(21, 2) == 1 and auto_batch(160, 2) == 10 and auto_batch(10**4, 2) == 16
+
+
+def test_sweep_rejects_bad_input_before_running_anything(tmp_path):
+    out = tmp_path / "s.zarr"
+    for args, key in ((("--ratio", "0:-4:0"), "--ratio"), (("--replicas", 0), "--replicas"),
+                      (("--ratio", "-1,-2", "--refine"), "--ratio"), (("--workers", 2, "--scheduler", "tcp://x:1"), "--workers"),
+                      (("--pair", "zirconia-zirconia"), "balls.material"), (("--batch", 0), "--batch")):
+        res = taimill("sweep", PRESET, *args, "--out", out)
+        assert res.returncode == 2, (args, res.stderr)
+        assert key in res.stderr and len(res.stderr.strip().splitlines()) == 1
+        assert not out.exists()
+
+
+# ---------------------------------------------------------------- bit identity
+def _run_alone(tmp_path, k, seed):
+    out = tmp_path / f"run{k}_{seed}.zarr"
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = cli.main(["run", PRESET, "--ratio", str(k), "--seed", str(seed), "--duration", "0.3", "--out", str(out), "--json"])
+    assert code == 0
+    return json.loads(buf.getvalue()), open_run(out)
+
+
+def _assert_same_run(a, b):
+    assert a.events and len(a.events["t_start"]) > 50
+    for col in b.events:
+        np.testing.assert_array_equal(a.events[col], b.events[col], err_msg=col)
+    for col in b.frames:
+        np.testing.assert_array_equal(a.frames[col], b.frames[col], err_msg=col)
+    assert {k: v for k, v in a.summary.items() if k not in TIMING} == {k: v for k, v in b.summary.items() if k not in TIMING}
+
+
+def test_sweep_points_equal_taimill_run_bit_for_bit(local_sweep, tmp_path):
+    # Acceptance: every point equals the same run alone (same seed): event and frame
+    # tables compared exactly, summaries except timings. K = -2 and -2.5 shared a kernel.
+    path, rows = local_sweep
+    assert [(r["ratio"], r["seed"], r["replica"]) for r in rows] == [
+        (-2.0, 1, 0), (-2.0, 2, 1), (-2.5, 1, 0), (-2.5, 2, 1), (-3.0, 1, 0), (-3.0, 2, 1)]
+    assert all(r["status"] == "complete" for r in rows)
+    store = open_sweep(path)
+    assert store.table()["batch"].max() == 2
+    for point, k, seed in ((0, -2.0, 1), (3, -2.5, 2)):
+        summary, alone = _run_alone(tmp_path, k, seed)
+        _assert_same_run(store.point(point), alone)
+        assert rows[point]["mean_se"] == summary["mean_se"] and rows[point]["events"] == summary["events"]
+
+
+def test_dask_local_cluster_gives_the_local_results(local_sweep, tmp_path):
+    # Acceptance: the same sweep on a real dask LocalCluster (2 worker processes, one
+    # thread each) equals the local processes' run bit for bit.
+    from distributed import LocalCluster
+
+    path, rows = local_sweep
+    out = tmp_path / "dask.zarr"
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        res = taimill(*SWEEP, "--scheduler", cluster.scheduler_address, "--out", out, "--json")
+    assert res.returncode == 0, res.stderr
+    dask_rows = json.loads(res.stdout)
+    local, remote = open_sweep(path), open_sweep(out)
+    for i in range(len(rows)):
+        _assert_same_run(remote.point(i), local.point(i))
+    assert [r["mean_se"] for r in dask_rows] == [r["mean_se"] for r in rows]
+
+
+def test_rerun_resumes_and_a_different_sweep_is_refused(local_sweep):
+    path, rows = local_sweep
+    res = taimill(*SWEEP, "--out", path, "--json")  # every point done: nothing runs
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout) == rows and "Starting on arch" not in res.stderr
+    res = taimill("sweep", PRESET, "--ratio", "-2:-3:0.25", "--duration", 0.3, "--out", path)
+    assert res.returncode == 2 and "different sweep" in res.stderr and "--overwrite" in res.stderr
+
+
+def test_store_survives_a_killed_sweep(tmp_path):
+    # A point killed mid-run (group 'running') is not done; a point whose group
+    # finished before its table row was marked is re-indexed from the group.
+    store = SweepStore.create(tmp_path / "s.zarr", {"preset": "x"})
+    pts = [{"overrides": {"ratio": k}, "values": {"ratio": k, "jar": "CY", "balls": 12, "pair": "steel-steel",
+                                                   "plate_rpm": 200.0}} for k in (-1.0, -2.0, -3.0)]
+    assert store.add_points(pts) == [0, 1, 2] and store.add_points(pts[1:]) == [1, 2]
+    radii = np.full(2, 0.006)
+
+    def result(i):
+        return PointResult(i, {"mean_se": -float(i), "events": 10 * i, "regime": "cataracting"}, "complete", {}, 2, radii, None)
+
+    store.write_point(result(0))
+    ZarrSink(store.root["points"].require_group("p00001")).start({}, 2, radii)  # killed while running
+    sink = ZarrSink(store.root["points"].require_group("p00002"))
+    sink.start({}, 2, radii)
+    sink.finish(result(2).summary, "complete")  # killed before its row
+    again = open_sweep(tmp_path / "s.zarr", mode="r+")
+    assert again.done() == {0, 2}
+    t = again.table()
+    assert list(t["point"]) == [0, 2] and list(t["events"]) == [0, 20] and list(t["regime"]) == ["cataracting"] * 2
+    assert is_sweep(tmp_path / "s.zarr") and not is_sweep(tmp_path / "nothing.zarr")
+
+
+# ---------------------------------------------------------------- statistics
+def test_student_t_quantiles_and_band():
+    # Tabulated two-sided 95 % quantiles (to the 4 decimals of the tables).
+    for nu, t in ((1, 12.7062), (2, 4.3027), (4, 2.7764), (10, 2.2281), (30, 2.0423)):
+        assert t_quantile(nu) == pytest.approx(t, abs=1e-4)
+    mean, half, n = mean_band([1.0, 2.0, 3.0, math.nan])
+    assert (mean, n) == (2.0, 3) and half == pytest.approx(4.302653 / math.sqrt(3), rel=1e-6)
+    assert math.isnan(mean_band([5.0])[1])
+
+
+def test_replicas_give_a_band_in_the_real_sweep(local_sweep):
+    path, rows = local_sweep
+    table = open_sweep(path).table()
+    ks, mean, half = band(table, np.arange(len(table["point"])), "mean_se")
+    assert list(ks) == [-3.0, -2.5, -2.0]
+    for k, m, h in zip(ks, mean, half):
+        pair = [r["mean_se"] for r in rows if r["ratio"] == k]
+        assert m == pytest.approx(np.mean(pair)) and h == pytest.approx(12.7062 * abs(pair[0] - pair[1]) / 2, rel=1e-4)
+
+
+def test_refine_locates_a_skewed_maximum():
+    # A skewed synthetic peak between grid points; 3 rounds halve the 0.5 spacing to
+    # 0.0625; the parabola through the best three points then lands within 0.01 of the
+    # true maximum (a smooth peak is locally quadratic: error ~ skew x spacing²).
+    k0 = -2.63
+
+    def f(k):
+        return math.exp(-((k - k0) ** 2) / 0.8) * (1.0 - 0.1 * (k - k0))
+
+    dense = np.linspace(-4.0, 0.0, 400_001)
+    true_peak = dense[np.argmax([f(k) for k in dense])]
+
+    def rows_for(ks, start):
+        return {start + i: {"ratio": k, "jar": "CY", "balls": 12, "pair": "p", "plate_rpm": 200.0, "m": f(k)}
+                for i, k in enumerate(ks)}
+
+    asked = []
+
+    def evaluate(extra):
+        (ks,) = extra.values()
+        asked.append(ks)
+        return rows_for(ks, 100 * len(asked))
+
+    grid = rows_for([0.5 * -i for i in range(9)], 0)
+    rows, peaks = refine(grid, "m", 3, evaluate)
+    assert asked[0] == [-2.75, -2.25] and len(asked) == 3
+    assert all(-4 <= k <= 0 for ks in asked for k in ks)
+    (peak,) = peaks
+    assert peak["method"] == "parabola" and peak["ratio"] == pytest.approx(true_peak, abs=0.01)
+    assert parabolic_peak([0, -1, -2], [3, 2, 1])["method"] == "edge"
+
+
+# ---------------------------------------------------------------- figures
+def test_report_writes_figures_and_overlay_via_the_cli(local_sweep, tmp_path):
+    path, _ = local_sweep
+    csv = tmp_path / "xrd.csv"
+    csv.write_text("# fluorite\nratio,inv_sqrt_D [1/sqrt(nm)],inv_sqrt_D_err\n-2.0,0.12,0.01\n-2.6,0.15,\n")
+    res = taimill("report", path, "--out", tmp_path / "fig", "--overlay", csv)
+    assert res.returncode == 0, res.stderr
+    names = sorted(Path(p).name for p in res.stdout.split())
+    assert names == ["impact_power.png", "mean_se.png", "mean_se_components.png", "normal_fraction.png",
+                     "overlay.png", "randomness.png"]
+    for p in res.stdout.split():
+        assert Path(p).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and Path(p).stat().st_size > 10_000
+    svg = report_sweep(path, tmp_path / "svg", "svg")
+    assert all(p.suffix == ".svg" and p.stat().st_size > 10_000 for p in svg)
+
+
+@pytest.mark.parametrize("text, where, why", [
+    ("", "header", "no header"),
+    ("K,x\n-1,2\n", "line 1", "'ratio'"),
+    ("ratio,x\n", "data", "no data line"),
+    ("ratio,x\n-1,2\n-2,abc\n", "line 3, column x", "must be a number"),
+    ("ratio,x\n-1,2,3\n", "line 2", "3 cells"),
+    ("ratio,x,y_err\n-1,2,3\n", "header", "NAME and NAME_err"),
+    ("ratio,x\n,2\n", "line 2, column ratio", "needs a ratio"),
+])
+def test_overlay_csv_errors_name_file_line_and_column(tmp_path, text, where, why):
+    p = tmp_path / "m.csv"
+    p.write_text(text)
+    with pytest.raises(ConfigError, match=why) as err:
+        read_overlay(p)
+    assert err.value.source == str(p) and err.value.key == where
+
+
+def test_overlay_reads_series_with_errors_and_missing_cells(tmp_path):
+    p = tmp_path / "m.csv"
+    p.write_text("ratio,a [u],a_err,b\n-1,1,0.1,\n-2,2,,5\n")
+    s = read_overlay(p)
+    assert list(s) == ["a [u]", "b"]
+    k, a, err = s["a [u]"]
+    assert list(k) == [-1, -2] and list(a) == [1, 2] and err[0] == 0.1 and math.isnan(err[1])
+    assert math.isnan(s["b"][1][0]) and s["b"][2] is None
+    with pytest.raises(ConfigError, match="cannot read"):
+        read_overlay(tmp_path / "missing.csv")

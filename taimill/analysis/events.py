@@ -51,7 +51,9 @@ class EventStats:
             sel = kind == k
             for hist, col, bins in ((self.hist_un, "un", SPEED_BINS), (self.hist_ut, "ut", SPEED_BINS),
                                     (self.hist_se_n, "se_n", ENERGY_BINS), (self.hist_se_t, "se_t", ENERGY_BINS)):
-                hist[k] += np.histogram(block[col][keep][sel], bins=bins)[0]
+                # out-of-range values (u̇ = 0, say) go to the end bins: every event counts
+                values = np.clip(block[col][keep][sel], bins[0], bins[-1])
+                hist[k] += np.histogram(values, bins=bins)[0]
 
     def result(self, tau: float, volume: float | None = None, n_balls: int | None = None) -> dict:
         """Summary over a window of length tau (s); volume (m³) adds the densities."""

@@ -44,7 +44,8 @@ class RunAnalysis:
         edges = self.density.edges
         hit = single_ball_hit(g.plate_radius, g.jar_radius, g.ball_radius, g.plate.end, g.ratio, g.ball_mass)
         return {
-            "status": self.store.status or "incomplete (no final status: killed or still running)",
+            "status": self.store.status if self.store.summary is not None else
+            f"incomplete (status '{self.store.status}', no final summary: killed or still running)",
             "analysis_window": [self.t0, self.t1],
             "ratio": g.ratio, "plate_rpm": g.plate.end * 30 / math.pi,
             "event_estimator": self.event.result(self.tau, g.volume, g.n_balls),

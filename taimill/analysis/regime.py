@@ -15,8 +15,9 @@ Rules, in order:
                                                                   flight)
     cascading    otherwise                                       (balls roll and tumble
                                                                   over the bed)
-Thresholds set from the CY steel preset scanned over K = −0.2 … −3.8 (8 s runs,
-windows 1–8 s and 4–8 s agree within 0.03; short 2–3 s runs over three seeds too): wall_fraction 0.06–0.36 for K ≥ −2.6 vs 0.77–0.91 at K ≤ −3.4;
+Thresholds set from the CY steel preset scanned over K = −0.2 … −3.8 (8 s runs;
+windows 1–8 s and 4–8 s agree within 0.03, and 2–3 s runs over three seeds too):
+wall_fraction 0.06–0.36 for K ≥ −2.6 vs 0.77–0.91 at K ≤ −3.4;
 flight_fraction 0.42 at K = −0.6 and 0.70 at K = −2.2. The cascading/cataracting
 change is gradual (every criterion moves monotonically from K = −0.2 to −2.6); the
 threshold sits halfway between K = −0.6 and −2.2 and puts the change near K ≈ −1.4

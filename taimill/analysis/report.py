@@ -36,15 +36,16 @@ def draw_trajectories_top(ax, a: RunAnalysis, balls: int = 3, seconds: float = 0
     for b in range(min(balls, a.geom.n_balls)):
         x = fr["position"][sel, b] * MM
         ax.plot(x[:, 0], x[:, 1], lw=0.8, label=f"ball {b}")
-    ax.set(xlabel="x (mm, jar frame)", ylabel="y (mm)", title=f"Trajectories, top view ({seconds:g} s)")
+    ax.set(xlabel="x (mm, jar frame)", ylabel="y (mm)", title=f"Trajectories, top view ({seconds:g} s of stored frames)")
     ax.legend(loc="upper right")
 
 
 def draw_trajectories_section(ax, a: RunAnalysis, balls: int = 3, seconds: float = 0.5):
     fr = a.store.frames
     sel = (fr["time"] >= a.t0) & (fr["time"] < a.t0 + seconds)
-    R, H = a.geom.jar_radius * MM, a.geom.height * MM
-    ax.plot([-R, R, R, -R, -R], [0, 0, H, H, 0], color="0.2", lw=1.2)
+    x0, x1 = a.geom.profile.outline[:, 0].min() * MM, a.geom.profile.outline[:, 0].max() * MM
+    H = a.geom.height * MM
+    ax.plot([x0, x1, x1, x0, x0], [0, 0, H, H, 0], color="0.2", lw=1.2)
     for b in range(min(balls, a.geom.n_balls)):
         x = fr["position"][sel, b] * MM
         ax.plot(x[:, 0], x[:, 2], lw=0.8)

@@ -94,15 +94,23 @@ class RunGeometry:
         return np.degrees(np.mod(a + math.pi, 2 * math.pi) - math.pi)
 
 
-def accessible_area(g: RunGeometry, edges: np.ndarray, n_theta: int = 720, sub: int = 16) -> np.ndarray:
-    """Area (m²) of each radial shell [edges_k, edges_k+1) a ball centre can occupy
-    (signed distance ≥ r_ball), by midpoint quadrature in polar coordinates."""
+def reach_radius(g: RunGeometry, theta: np.ndarray, iterations: int = 40) -> np.ndarray:
+    """Distance from the axis (m) to the edge of the region a ball centre can reach
+    (signed distance ≥ r_ball) along each direction theta (rad), by bisection; the
+    region is star-shaped about the axis like the profile."""
+    u = np.column_stack([np.cos(theta), np.sin(theta)])
+    lo, hi = np.zeros(len(theta)), np.full(len(theta), g.jar_radius)
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        inside = g.sdf(mid[:, None] * u)[0] >= g.ball_radius
+        lo, hi = np.where(inside, mid, lo), np.where(inside, hi, mid)
+    return lo
+
+
+def accessible_area(g: RunGeometry, edges: np.ndarray, n_theta: int = 1440) -> np.ndarray:
+    """Area (m²) of each radial shell [edges_k, edges_k+1) that ball centres can reach:
+    Σ_θ ½ Δθ (min(ρ_reach(θ), r_k+1)² − r_k²)⁺ (exact in r, midpoint rule in θ)."""
     theta = (np.arange(n_theta) + 0.5) * 2 * math.pi / n_theta
-    out = np.zeros(len(edges) - 1)
-    for k in range(len(edges) - 1):
-        rho = edges[k] + (np.arange(sub) + 0.5) * (edges[k + 1] - edges[k]) / sub
-        rr, tt = np.meshgrid(rho, theta)
-        phi, _ = g.sdf(np.column_stack([(rr * np.cos(tt)).ravel(), (rr * np.sin(tt)).ravel()]))
-        cell = rr.ravel() * (edges[k + 1] - edges[k]) / sub * 2 * math.pi / n_theta
-        out[k] = np.sum(cell[phi >= g.ball_radius])
-    return out
+    rho = reach_radius(g, theta)
+    outer = np.clip(rho[None, :], edges[:-1, None], edges[1:, None])
+    return 0.5 * (2 * math.pi / n_theta) * np.sum(outer**2 - edges[:-1, None] ** 2, axis=1)

@@ -153,7 +153,13 @@ def run_dask(chunks: list[list[Job]], address: str, keep_streams: bool, on_progr
     """Yield each chunk's results as it finishes on the dask cluster at `address`."""
     from distributed import Client, as_completed
 
-    with Client(address) as client:
+    from taimill.errors import ConfigError
+
+    try:
+        client = Client(address, timeout=10)
+    except (OSError, TimeoutError, ValueError) as err:
+        raise ConfigError("command line", "--scheduler", address, f"no dask scheduler answered there ({err})") from None
+    with client:
         futures = {client.submit(run_chunk, cid, chunk, keep_streams, pure=False): cid
                    for cid, chunk in enumerate(chunks)}
         for fut in as_completed(futures):

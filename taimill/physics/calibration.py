@@ -81,6 +81,7 @@ class Drop:
     h0: float
     target: str = "plate"
     dt: float | None = None  #: s; None: the automatic dt at this impact speed
+    duration: float | None = None  #: s, bound on the contact time (run length); None: RK4 of the law
 
     @property
     def law(self) -> NormalLaw:
@@ -94,7 +95,7 @@ class Drop:
         """Plate: gravity on, the ball starts just above the plate at √(2 g h₀). Ball: two
         free balls meet head-on at √(2 g h₀) without gravity."""
         v0, r = self.speed, self.ball.radius
-        t_c = contact_time(self.law, v0)
+        t_c = self.duration or contact_time(self.law, v0)
         dt = self.dt or t_c / laws_np.STEPS_PER_CONTACT  # = laws_np.auto_dt((law,), v0)
         steps = int(3 * t_c / dt) + 10
         args = (self.ball, self.jar, self.bb, self.bw, self.friction)

@@ -1,0 +1,75 @@
+"""Measured drop tests: a CSV of drop heights and rebounds (format in
+`taimill/data/zirconia_drop_table2_1.csv`, thesis Table 2.1)."""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from taimill.errors import ConfigError
+
+DATA_DIR = Path(__file__).resolve().parent.parent / "data"
+TABLE_2_1 = DATA_DIR / "zirconia_drop_table2_1.csv"
+MAX_HEIGHT_MM = 10_000.0
+
+
+@dataclass(frozen=True)
+class DropData:
+    source: str
+    h0: np.ndarray  #: m, drop heights
+    e: np.ndarray  #: measured restitution, eq 2.5
+    sigma: np.ndarray  #: 1 s.d. of e per row (nan: not given, the fit's --scatter applies)
+
+    @property
+    def rebound(self) -> np.ndarray:
+        """Rebound heights h* = e² h₀ (m), eq 2.5."""
+        return self.e**2 * self.h0
+
+
+def _number(path, line, col, text, lo, hi, unit=""):
+    try:
+        v = float(text)
+    except (TypeError, ValueError):
+        raise ConfigError(path, f"{col} (line {line})", text, "must be a number") from None
+    if not (math.isfinite(v) and lo < v <= hi):
+        raise ConfigError(path, f"{col} (line {line})", v, f"allowed range ({lo:g}, {hi:g}]{unit}")
+    return v
+
+
+def load_drop_data(path) -> DropData:
+    """Read a drop-test CSV: h0_mm and rebound_mm or e per row (e wins when both are
+    given: see the file format), optional sigma_e or sigma_mm; other columns ignored."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as err:
+        raise ConfigError(path, "data", str(path), f"cannot read ({err.strerror})") from None
+    lines = [(i + 1, s) for i, s in enumerate(text.splitlines()) if s.strip() and not s.lstrip().startswith("#")]
+    if not lines:
+        raise ConfigError(path, "columns", None, "empty file; need a header with h0_mm and rebound_mm or e")
+    header = [c.strip() for c in next(csv.reader([lines[0][1]]))]
+    if "h0_mm" not in header or not {"rebound_mm", "e"} & set(header):
+        raise ConfigError(path, "columns", ",".join(header), "need h0_mm and rebound_mm or e (optional sigma_e or sigma_mm)")
+    h0, e, sigma = [], [], []
+    for line, row in lines[1:]:
+        cells = dict(zip(header, (c.strip() for c in next(csv.reader([row])))))
+        h = _number(path, line, "h0_mm", cells.get("h0_mm"), 0, MAX_HEIGHT_MM, " mm")
+        if "e" in header:
+            ei = _number(path, line, "e", cells.get("e"), 0, 1)
+        else:
+            ei = math.sqrt(_number(path, line, "rebound_mm", cells.get("rebound_mm"), 0, h, " mm (h* <= h0)") / h)
+        s = math.nan
+        if "sigma_e" in header:
+            s = _number(path, line, "sigma_e", cells.get("sigma_e"), 0, 1)
+        elif "sigma_mm" in header:
+            s = _number(path, line, "sigma_mm", cells.get("sigma_mm"), 0, h, " mm") / (2 * ei * h)  # dh* = 2 e h0 de
+        h0.append(h * 1e-3)
+        e.append(ei)
+        sigma.append(s)
+    if not h0:
+        raise ConfigError(path, "rows", 0, "no data rows after the header")
+    return DropData(str(path), np.array(h0), np.array(e), np.array(sigma))

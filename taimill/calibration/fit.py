@@ -65,6 +65,10 @@ class Parameter:
     def x(self, t):
         return np.exp(t) if self.log else np.asarray(t, float)
 
+    @property
+    def most_damped(self) -> float:
+        return self.hi if self.name == "c_max" else self.lo
+
     def wall_law(self, x: float) -> NormalLaw:
         """The ball-wall law with the parameter at x (what a plate drop needs)."""
         if self.name == "d":
@@ -121,16 +125,19 @@ def _damping_curve(law: NormalLaw, points=400):
 def drop_model(pair: str, law_name: str | None, p: Parameter, heights):
     """values (table units) → e (K, n): plate drops from `heights` run by the engine,
     all candidates in one batch. Each height keeps one dt for every candidate (the
-    pair's automatic dt there), so the objective is smooth in the parameter, and one run
-    length: 6 contact times of the pair's law (damping shortens a clamped contact)."""
-    from taimill.physics.calibration import Drop, contact_time, run_drops
+    pair's automatic dt there, or less if the most damped candidate needs it), so the
+    objective is smooth in the parameter, and one run length: 6 contact times of the
+    pair's law (damping shortens a clamped contact)."""
+    from taimill.physics.calibration import Drop, resolved_dt, run_drops
 
     ball, jar, bb, bw, friction = pair_contact(pair, law=law_name)
-    t_c = [contact_time(bw, math.sqrt(2 * GRAVITY * h)) for h in heights]
+    speeds = np.sqrt(2 * GRAVITY * np.asarray(heights))
+    t_c, dts = zip(*(resolved_dt(bw, v) for v in speeds))
+    dts = [min(dt, resolved_dt(p.wall_law(p.most_damped), v)[1]) for dt, v in zip(dts, speeds)]
 
     def model(values):
-        drops = [Drop(ball, jar, bb, p.wall_law(x), friction, h, "plate", t / laws_np.STEPS_PER_CONTACT, 6 * t)
-                 for x in values for h, t in zip(heights, t_c)]
+        drops = [Drop(ball, jar, bb, p.wall_law(x), friction, h, "plate", dt, 6 * t)
+                 for x in values for h, t, dt in zip(heights, t_c, dts)]
         return np.reshape([r["e"] for r in run_drops(drops)], (len(values), len(heights)))
 
     return model

@@ -64,7 +64,18 @@ def run_spec(spec: MillSpec):
 
 def contact_time(law: NormalLaw, speed: float) -> float:
     """Duration (s) of a head-on impact of `law` at approach speed `speed` (m/s), RK4."""
-    return float(laws_np.simulate_impact(law.law_id, law.k, law.n, law.c, law.d, law.m_eff, speed, steps=400)["duration"][0])
+    return resolved_dt(law, speed)[0]
+
+
+def resolved_dt(law: NormalLaw, speed: float, steps: int = laws_np.STEPS_PER_CONTACT) -> tuple[float, float]:
+    """(contact time, time step) of a head-on impact at `speed` (m/s): the contact time
+    over `steps` (laws_np.auto_dt), and at most 0.5 m_eff/c_eff with c_eff = c·g(u_peak)
+    the damping at peak overlap — explicit damping is stable below 2 and accurate below
+    ~0.5. Only heavily damped variants (a ±50 % sensitivity, a fit's range) meet it."""
+    r = laws_np.simulate_impact(law.law_id, law.k, law.n, law.c, law.d, law.m_eff, speed, steps=400)
+    t_c, u = float(r["duration"][0]), r["peak_penetration"]
+    c_eff = law.c * float(laws_np.damping_shape(law.law_id, u, law.k, law.n, law.d, law.m_eff)[0])
+    return t_c, min(t_c / steps, 0.5 * law.m_eff / c_eff) if c_eff > 0 else t_c / steps
 
 
 # ------------------------------------------------------------------ drop tests
@@ -80,7 +91,7 @@ class Drop:
     friction: Friction
     h0: float
     target: str = "plate"
-    dt: float | None = None  #: s; None: the automatic dt at this impact speed
+    dt: float | None = None  #: s; None: `resolved_dt` at this impact speed
     duration: float | None = None  #: s, bound on the contact time (run length); None: RK4 of the law
 
     @property
@@ -95,8 +106,8 @@ class Drop:
         """Plate: gravity on, the ball starts just above the plate at √(2 g h₀). Ball: two
         free balls meet head-on at √(2 g h₀) without gravity."""
         v0, r = self.speed, self.ball.radius
-        t_c = self.duration or contact_time(self.law, v0)
-        dt = self.dt or t_c / laws_np.STEPS_PER_CONTACT  # = laws_np.auto_dt((law,), v0)
+        t_c, dt = (self.duration, self.dt) if self.duration and self.dt else resolved_dt(self.law, v0)
+        dt = self.dt or dt
         steps = int(3 * t_c / dt) + 10
         args = (self.ball, self.jar, self.bb, self.bw, self.friction)
         if self.target == "plate":
@@ -183,7 +194,7 @@ def two_sphere_impacts(pair: str, cases, *, law=None, contact=None, friction: Fr
     maximum compression — the bisector of the lines at first touch and at separation
     (exact when elastic, to O(θ(1-e)) with damping). The line turns by `turn` θ (rad)
     during contact: 0.5° at Δ = 11 mm, 3300 mm/s, which alone would put the onset-frame
-    normal component 3 % off eq 2.3. Also: contacts, duration (s), dt (s), mass (kg)."""
+    normal component 3 % off eq 2.3. Also: contacts, duration (s), dt (s), ball mass (kg) and radius (m)."""
     ball, jar, bb, bw, own = pair_contact(pair, None, law, contact=contact)
     friction = own if friction is None else friction
     specs = []
@@ -208,6 +219,6 @@ def two_sphere_impacts(pair: str, cases, *, law=None, contact=None, friction: Fr
             "un_final": float(w_out @ n_a), "ut_final": float(w_out @ t_a),
             "turn": 2.0 * math.acos(min(1.0, float(n0 @ n_a))),
             "contacts": len(ev["t_start"]), "duration": float(ev["duration"][0]) if len(ev["duration"]) else 0.0,
-            "dt": spec.dt, "mass": ball.mass,
+            "dt": spec.dt, "mass": ball.mass, "radius": ball.radius,
         })
     return out

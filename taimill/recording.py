@@ -59,11 +59,14 @@ class RerunSink:
 
     # ------------------------------------------------------------ the Sink protocol
     def start(self, config: dict, n_balls: int, radii: np.ndarray) -> None:
-        """Open the file, log the static scenery and set the colour scales."""
+        """Open the file, log the static scenery and set the colour scales. `config`:
+        the resolved preset (`Preset.as_dict()`, or its JSON copy in a store); the
+        `step` timeline is round(t / config["dt"])."""
         self.config, self.dt = config, float(config["dt"])
         self.n = int(n_balls)
         self.ball_radius = float(np.max(radii))
-        jar_radius = float(np.hypot(*scene.jar_outline(config).T).max())
+        outline = scene.jar_outline(config)
+        jar_radius = float(np.hypot(*outline.T).max())
         self.speed_ref = scene.speed_scale(config, jar_radius)
         self.se_ref = 0.5 * scene.ball_mass(config) * self.speed_ref**2
         self.luts = {k: scene.lut(name) for k, name in scene.COLORMAPS.items()}
@@ -72,7 +75,7 @@ class RerunSink:
         self.rec = rr.RecordingStream("taimill")
         self.rec.save(self.path, default_blueprint=scene.blueprint(self.lab_frame))
         self.rec.send_recording_name(f"{config['jar']['name']} {config['pair']} {self.path.stem}")
-        scene.log_scenery(self.rec, config, radii, self.lab_frame)
+        scene.log_scenery(self.rec, config, outline, radii, self.lab_frame)
         self._log_info()
         self.frame_blocks: list[dict] = []
         self.event_blocks: list[dict] = []
@@ -93,7 +96,7 @@ class RerunSink:
         if self.t_origin is None:
             self.t_origin = float(t[0])
             self.next_histogram = (math.floor(self.t_origin / self.period) + 1) * self.period
-        self.frame_blocks.append({"time": t.copy(), "position": np.asarray(block["position"], dtype=np.float32),
+        self.frame_blocks.append({"time": t.copy(), "position": np.array(block["position"], dtype=np.float32),
                                   "speed": np.linalg.norm(block["velocity"], axis=-1)})
 
     def events(self, block: dict[str, np.ndarray]) -> None:
@@ -137,7 +140,7 @@ class RerunSink:
             self.ledger_blocks = []
             self._send_balance(rows)
             self.ledger = {k: np.concatenate([self.ledger[k], rows[k]]) for k in LEDGER_KEYS}
-        if len(self.ledger["time"]):
+        if len(self.ledger["time"]) and self.t_origin is not None:
             upto = self.ledger["time"][-1] - (0.0 if final else STAT_LAG)
             self._send_windows(upto)
             self._send_histograms(upto, final)
@@ -170,12 +173,12 @@ class RerunSink:
         for kind, path in scene.IMPACTS.items():
             level = scene.log_scale(e["se_" + kind[0]], self.se_ref, scene.SE_DECADES)
             self.rec.send_columns(path, indexes=self._index(e["t_start"]), columns=rr.Points3D.columns(
-                positions=at, radii=self.ball_radius * (0.1 + 0.4 * level), colors=scene.shade(self.luts[kind], level)))
+                positions=at, radii=self.ball_radius * (0.05 + 0.25 * level), colors=scene.shade(self.luts[kind], level)))
         wall = e["kind"] == 1
         if wall.any():
             level = scene.log_scale(e["un"][wall], self.speed_ref, scene.UN_DECADES)
             self.rec.send_columns(scene.CONTACT_MAP, indexes=self._index(e["t_start"][wall]), columns=rr.Points3D.columns(
-                positions=at[wall], radii=np.full(int(wall.sum()), 0.12 * self.ball_radius),
+                positions=at[wall], radii=np.full(int(wall.sum()), 0.06 * self.ball_radius),
                 colors=scene.shade(self.luts["contact"], level)))
 
     def _send_balance(self, rows: dict[str, np.ndarray]) -> None:

@@ -9,7 +9,8 @@ Entity tree (SI units: m, s, J, W):
     /jar/balls               Points3D per frame: centres (jar frame), radii, colour = speed
     /jar/impacts/normal      one point per event at its contact point and t_start,
     /jar/impacts/tangential  coloured and sized by SE_n resp. SE_t; the 3-D view shows the
-                             last IMPACT_LIFE seconds of them
+                             last IMPACT_LIFE seconds of them. Both sit at the same points,
+                             so the tangential ones start hidden (one click shows them)
     /jar/contact_map         ball-wall events, coloured by u̇_n, shown accumulated
     /plate                   lab frame only: the plate rim and the jar's path
     /stats/...               scalar series (recording_stats.py)
@@ -40,9 +41,9 @@ CONTACT_MAP, PLATE, INFO = "/jar/contact_map", "/plate", "/run/info"
 HISTOGRAMS = {"normal": "/histograms/onset_normal", "tangential": "/histograms/onset_tangential"}
 TIME, STEP = "sim_time", "step"
 
-IMPACT_LIFE = 0.05  # s an impact stays visible in the 3-D view (5 frames at 100 Hz)
+IMPACT_LIFE = 0.02  # s an impact stays visible in the 3-D view (2 frames at 100 Hz)
 SE_DECADES = 4.0  # colour range of stress energies below ½ m V²
-UN_DECADES = 3.0  # colour range of contact-map onset speeds below V
+UN_DECADES = 2.0  # colour range of contact-map onset speeds below V (wall impacts: ≈ V/50 … V)
 OUTLINE_POINTS = 720  # profile vertices drawn (of the fine outline's thousands)
 EDGES = 24  # vertical wall edges drawn
 COLORMAPS = {"speed": "viridis", "normal": "plasma", "tangential": "cool", "contact": "turbo"}
@@ -93,6 +94,7 @@ def speed_scale(config: dict, radius: float) -> float:
 
 
 def ball_mass(config: dict) -> float:
+    """Mass of one ball (kg) from the resolved preset."""
     b = config["balls"]
     return b["material"]["density"] * 4.0 / 3.0 * math.pi * b["radius"] ** 3
 
@@ -128,10 +130,10 @@ def plate_strips(plate_radius: float, jar_radius: float) -> list[np.ndarray]:
     return [circle * (plate_radius + 1.2 * jar_radius), circle * plate_radius]
 
 
-def log_scenery(rec: rr.RecordingStream, config: dict, radii: np.ndarray, lab_frame: bool) -> None:
-    """Everything logged once (static): axes, jar, ball radii, series styles, run info."""
+def log_scenery(rec: rr.RecordingStream, config: dict, fine: np.ndarray, radii: np.ndarray, lab_frame: bool) -> None:
+    """Everything logged once (static): axes, jar (`fine`: jar_outline), ball radii (m),
+    plate, series names."""
     rec.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    fine = jar_outline(config)
     vertices = ring(fine)
     rec.log(WALL, rr.LineStrips3D(jar_strips(vertices, config["jar"]["height"]), radii=rr.Radius.ui_points(1.0),
                                   colors=[150, 160, 175, 255]), static=True)
@@ -142,7 +144,9 @@ def log_scenery(rec: rr.RecordingStream, config: dict, radii: np.ndarray, lab_fr
         rec.log(PLATE, rr.LineStrips3D(plate_strips(config["plate_radius"], jar_radius), radii=rr.Radius.ui_points(1.0),
                                        colors=[120, 120, 120, 255]), static=True)
     for path, (_, name, _) in SERIES.items():
-        rec.log(f"/stats/{path}", rr.SeriesLines(names=name), static=True)
+        kind = path.rpartition("/")[2]
+        color = shade(lut(COLORMAPS[kind]), np.array(0.6)) if kind in IMPACTS else None
+        rec.log(f"/stats/{path}", rr.SeriesLines(names=name, colors=color), static=True)
 
 
 def info_text(config: dict, speed_ref: float, se_ref: float, summary: dict | None = None,
@@ -155,7 +159,7 @@ def info_text(config: dict, speed_ref: float, se_ref: float, summary: dict | Non
         f"# {config.get('source', 'taimill run')}",
         f"- jar **{jar['name']}**, {balls['count']} × {balls['material']['name']} balls of "
         f"{balls['radius'] * 1e3:g} mm, pair **{config['pair']}**",
-        f"- Ω = {rpm:g} rpm, K = {ratio:.3g}, dt = {config['dt'] * 1e6:.4g} µs, duration {config['duration']:g} s",
+        f"- Ω = {rpm:g} rpm, K = {ratio:.3g}, dt = {config['dt'] * 1e6:.4g} µs, duration {config.get('duration', '?')} s",
         f"- balls coloured by speed in the jar frame ({COLORMAPS['speed']}, 0 … {speed_ref:.2f} m/s)",
         f"- impacts by stress energy (normal {COLORMAPS['normal']}, tangential {COLORMAPS['tangential']}; "
         f"{SE_DECADES:g} decades up to {se_ref:.3g} J), shown for {IMPACT_LIFE * 1e3:g} ms",
@@ -187,7 +191,8 @@ def blueprint(lab_frame: bool) -> rrb.Blueprint:
     jar_view = rrb.Spatial3DView(
         origin=JAR, name="jar frame: balls by speed, impacts by SE",
         contents=[f"+ {WALL}", f"+ {FLOOR}", f"+ {BALLS}", "+ /jar/impacts/**"],
-        overrides={path: recent(IMPACT_LIFE) for path in IMPACTS.values()},
+        overrides={IMPACTS["normal"]: recent(IMPACT_LIFE),  # tangential: same points, off until toggled
+                   IMPACTS["tangential"]: [recent(IMPACT_LIFE), rrb.EntityBehavior(visible=False)]},
     )
     views = [jar_view]
     if lab_frame:

@@ -46,11 +46,14 @@ def _check(value, name, lo, hi, unit, lo_open=True):
 # ------------------------------------------------------------------ drop
 def cmd_drop(a) -> int:
     from taimill.calibration.figures import drop_figure
-    from taimill.physics.calibration import drop_tests
+    from taimill.params import pair_contact
 
     heights = [_check(h, "--h0", 0, MAX_H0_MM, "mm (drop height)") for h in a.h0]
     if a.radius_mm is not None:
         _check(a.radius_mm, "--radius-mm", 0, 100, "mm")
+    pair_contact(a.pair, law=a.law)  # bad input is reported before taichi starts
+    from taimill.physics.calibration import drop_tests
+
     rs = drop_tests(a.pair, [h * 1e-3 for h in heights], target=a.target, law=a.law,
                     radius=None if a.radius_mm is None else a.radius_mm * 1e-3)
     r = rs[0]

@@ -167,7 +167,7 @@ def fit_drops(pair: str, data: DropData, *, param: str | None = None, law: str |
         return chi2(seen[t])
 
     t_best, _, calls = brent(objective, grid[i - 1], grid[i], grid[i + 1], fb=chi2(e_grid[i]),
-                             xtol=1e-5 if p.log else 1e-6)
+                             xtol=1e-3 if p.log else 1e-4)  # 0.1 % of d or c_max: far below their uncertainty
     e_best = seen.get(t_best, e_grid[i])
     x_best = float(p.x(t_best))
     h = 1e-2 if p.log else 2e-3

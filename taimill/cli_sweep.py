@@ -35,7 +35,8 @@ def register(subparsers) -> None:
     g.add_argument("--jar", help="jars, e.g. CY,HM")
     g.add_argument("--replicas", type=int, default=1, help="R seeds per point (seed … seed+R-1): mean ± 95%% band")
     g.add_argument("--refine", action="store_true", help="add points around the maximum of --refine-metric")
-    g.add_argument("--refine-metric", default="mean_se", choices=REFINE_METRICS, help="figure to maximise (default mean_se)")
+    g.add_argument("--refine-metric", default="mean_se", choices=REFINE_METRICS, metavar="KEY",
+                   help=f"summary figure to maximise: {', '.join(REFINE_METRICS)} (default mean_se)")
     g.add_argument("--refine-rounds", type=int, default=2, help="refinement rounds, each halving the spacing (default 2)")
     o = s.add_argument_group("run overrides (every point)")
     o.add_argument("--seed", type=int, help="seed of the first replica")

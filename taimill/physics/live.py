@@ -104,6 +104,7 @@ class LiveMill:
         """Load preset into a fresh Runner at t = 0 (speeds ramp up from rest)."""
         spec = from_preset(preset, preset.duration).replace(steps=FOREVER)
         self.preset = preset
+        self.changes: list[dict] = []  #: live changes since t = 0 (for recordings)
         self.runner = Runner([spec])
         self.runner.engine.advance(0)  # compile / materialise now, in the calling thread
         self.plate, self.jar = spec.plate, spec.jar
@@ -160,15 +161,18 @@ class LiveMill:
         w, w_dot, phi_j = self.jar.at(t)
         return {"plate": om, "plate_accel": om_dot, "plate_angle": phi_p, "jar": w, "jar_accel": w_dot, "jar_angle": phi_j}
 
-    def state(self) -> dict:
-        """The current state: time (s), position, velocity (N, 3) jar frame, spin, and
-        ψ = φ_plate - φ_jar (rad, the direction away from the plate axis)."""
+    def state(self, *, velocities: bool = False) -> dict:
+        """The current state: time (s), position (N, 3) m in the jar frame, ψ =
+        φ_plate - φ_jar (rad, the direction away from the plate axis), Ω and w now
+        (rad/s); with velocities, also velocity (m/s, jar frame) and spin (rad/s)."""
+        n = self.n_balls
         with self._locked():
             t = self.time
-            s = self.runner.final_state(0)
+            out = {"position": self.F.x.to_numpy()[0, :n]}
+            if velocities:
+                out |= {"velocity": self.F.v.to_numpy()[0, :n], "spin": self.F.s.to_numpy()[0, :n]}
         d = self.drive(t)
-        return {"time": t, "position": s["x"], "velocity": s["v"], "spin": s["s"],
-                "psi": d["plate_angle"] - d["jar_angle"], "plate": d["plate"], "jar": d["jar"]}
+        return out | {"time": t, "psi": d["plate_angle"] - d["jar_angle"], "plate": d["plate"], "jar": d["jar"]}
 
     def config(self) -> dict:
         """The resolved configuration now (for a sink started mid-run), JSON-able."""
@@ -176,19 +180,19 @@ class LiveMill:
 
     # ------------------------------------------------------------------ sinks
     def add_sink(self, sink):
-        """Stream everything from now on to sink (its start() is called here)."""
+        """Stream everything from now on to sink. Its start() runs first, outside the
+        lock (opening a file can take a second: the mill runs on meanwhile)."""
+        sink.start(self.config(), self.n_balls, self.radius)
         with self._locked():
-            sink.start(self.config(), self.n_balls, self.radius)
             self._sinks.append(sink)
             self._out = FanOut(*self._sinks)
 
-    def remove_sink(self, sink, summary: dict | None = None, status: str = "stopped"):
-        """Stop streaming to sink and finish it."""
+    def remove_sink(self, sink):
+        """Stop streaming to sink (the caller finishes it: nothing reaches it after this)."""
         with self._locked():
             if sink in self._sinks:
                 self._sinks.remove(sink)
                 self._out = FanOut(*self._sinks)
-        sink.finish(summary or {}, status)
 
     # ------------------------------------------------------------------ running
     @contextlib.contextmanager
@@ -273,6 +277,8 @@ class LiveMill:
             self.runner.specs[0] = self.spec.replace(plate=self.plate, jar=self.jar)
             self.preset = dataclasses.replace(self.preset, plate_omega=om, jar_spin=w, ramp_time=T)
             self._set_dt(dt)
+            self.changes.append({"time": t, "plate_rpm": self.plate_rpm, "ratio": self.ratio, "jar_rpm": self.jar_rpm,
+                                 "ramp_time": T, "dt": self.dt})
 
     def _peak(self, ramp: Ramp, target: float) -> float:
         """Largest |speed| from now to the end of a new ramp to target (ramps are monotone)."""
@@ -313,6 +319,7 @@ class LiveMill:
             set_friction(self.F, 0, fr)
             self.runner.specs[0] = self.spec.replace(friction=fr)
             self.preset = dataclasses.replace(self.preset, friction=fr, pair=pair or self.preset.pair)
+            self.changes.append({"time": self.time, "pair": self.preset.pair, "mu_s": mu_s, "mu_d": mu_d})
 
     def reset(self):
         """Back to t = 0: the seeded placement, ramping from rest to the current targets."""
@@ -320,10 +327,9 @@ class LiveMill:
             p = self.preset
             self._start(dataclasses.replace(p, dt=auto_dt(p, p.plate_omega, p.jar_spin, self.dt_fixed)))
 
-    def rebuild(self, *, jar: str | None = None, balls: int | None = None):
-        """A new jar (name in jars/ or path) and/or ball count, restarting at t = 0 with
-        the current speeds and friction. Call from the ti.init thread: a ball count
-        beyond the padded capacity of the current engine allocates new fields."""
+    def rebuilt(self, *, jar: str | None = None, balls: int | None = None) -> Preset:
+        """The preset of a new jar (name in jars/ or path) and/or ball count with the
+        current speeds and friction, validated (ConfigError); nothing changes yet."""
         p = self.preset
         if balls is not None:
             check("balls", balls)
@@ -337,6 +343,15 @@ class LiveMill:
             raise (ConfigError(SOURCE, err.key, err.value, err.allowed) if err.source == "command line" else err) from None
         if load_friction(new.pair, SOURCE)[1] == load_friction(p.pair, SOURCE)[1]:
             new = dataclasses.replace(new, friction=p.friction, pair=p.pair)
+        return new
+
+    def restart(self, preset: Preset):
+        """Start over at t = 0 from preset (see `rebuilt`). Call from the ti.init thread:
+        a ball count beyond the padded capacity of the current engine allocates new fields."""
         with self._locked():
-            self._start(new)
-        self.overrides.update({k: over[k] for k in ("jar", "balls.count") if over[k] is not None})
+            self._start(preset)
+        self.overrides.update({"jar": preset.jar.source, "balls.count": preset.balls.count})
+
+    def rebuild(self, *, jar: str | None = None, balls: int | None = None):
+        """A new jar and/or ball count, restarting at t = 0 with the current speeds and friction."""
+        self.restart(self.rebuilt(jar=jar, balls=balls))

@@ -1,0 +1,350 @@
+"""`MillApp`: the live mill in the terminal.
+
+The simulation runs in one thread worker (`simulate`) that advances the LiveMill in
+≈ 10 ms kernel chunks (NOTES.md: a kernel holds the GIL) and reports only through
+messages: a frame every FRAME_PERIOD of wall time (coalesced), the window readouts
+every READOUT_PERIOD. Changes go the other way through the LiveMill's locked setters,
+called from the UI thread; the LiveMill must have been built (and its kernels
+compiled) in the main thread before the app starts.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import threading
+import time
+from collections import deque
+from pathlib import Path
+
+from textual import work
+from textual.app import App, ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.widgets import Footer, Header, Static
+from textual.worker import get_current_worker
+
+from taimill.analysis.theory import critical_ratio
+from taimill.errors import ConfigError, SimulationUnstable
+from taimill.tui.controls import Controls
+from taimill.tui.figure import save_png
+from taimill.tui.help import HelpScreen
+from taimill.tui.history import SERIES, History
+from taimill.tui.jarview import JarView
+from taimill.tui.messages import (FrameReady, FrictionRequested, Notice, ReadoutsReady, RebuildRequested, SimFault,
+                                  SpeedsRequested)
+from taimill.tui.readouts import Readouts
+from taimill.tui.recorders import Recorders
+from taimill.tui.window import WindowStats
+
+FRAME_PERIOD = 1 / 15  # wall s between frames sent to the views (the issue asks ≥ 10 /s)
+READOUT_PERIOD = 1.0  # wall s between window summaries (each ≈ 60 ms of NumPy for 12 balls)
+ADVANCE_BUDGET = 0.03  # wall s per advance() call: three chunks between frame checks
+TEXT_PERIOD = 0.25  # wall s between updates of the time and speed texts
+HISTORY = 120  # readouts kept for the sparklines (two minutes)
+HINT = "Enter applies a field · Esc leaves it · letter keys act outside fields · ? help"
+
+
+class MillApp(App):
+    TITLE = "taimill"
+    AUTO_FOCUS = None  # nothing focused at start: the letter keys work at once
+    CSS = """
+    #main { height: 1fr; }
+    #views { width: 1fr; }
+    #views .caption { height: 1; color: $text-muted; }
+    #top { height: 2fr; }
+    #section { height: 1fr; }
+    #side { width: 40; padding: 0 1; }
+    #message { height: 1; padding: 0 1; }
+    #message.error { color: $error; text-style: bold; }
+    #status { height: 1; padding: 0 1; background: $boost; }
+    """
+    BINDINGS = [
+        Binding("p,space", "pause", "pause/resume"),
+        Binding("s", "step", "step"),
+        Binding("r", "reset", "reset"),
+        Binding("o", "record('rrd')", "rec .rrd"),
+        Binding("z", "record('zarr')", "rec zarr"),
+        Binding("g", "snapshot", "PNG"),
+        Binding("question_mark,f1", "help", "help"),
+        Binding("escape", "leave_field", "leave field", show=False),
+        Binding("q", "quit", "quit"),
+    ]
+
+    def __init__(self, mill, *, out_dir: Path | str = ".", window: float = 4.0, paused: bool = False):
+        super().__init__()
+        self.mill = mill
+        self.out_dir = Path(out_dir)
+        self.window_seconds = window
+        self.paused = paused
+        self.recorders = Recorders(self.out_dir)
+        self.steps: deque = deque()  # step requests, UI -> worker (deque ops are atomic)
+        self.history = {k: deque(maxlen=HISTORY) for k in SERIES}
+        self.last_frame: FrameReady | None = None
+        self.last_values: dict = {}
+        self.fps = math.nan  # frames drawn per wall s, measured
+        self._texts_at = 0.0
+        self.window = None
+        self._new_window()
+        self.sim_stopped = threading.Event()
+
+    # ------------------------------------------------------------------ layout
+    def compose(self) -> ComposeResult:
+        # kept as attributes: the help screen may be on top when a frame arrives
+        self.controls = Controls(self.settings(), id="controls")
+        self.top_view, self.section_view = JarView("top", id="top"), JarView("section", id="section")
+        self.readouts, self.history_plots = Readouts(self.window_seconds, id="readouts"), History(id="history")
+        self.message_bar = Static(HINT, id="message", markup=False)
+        self.status_bar = Static("", id="status", markup=False)
+        yield Header()
+        with Horizontal(id="main"):
+            yield self.controls
+            with Vertical(id="views"):
+                yield Static("jar frame, from above · red: away from plate axis", classes="caption")
+                yield self.top_view
+                yield Static("section x-z", classes="caption")
+                yield self.section_view
+            with Vertical(id="side"):
+                yield self.readouts
+                yield self.history_plots
+        yield self.message_bar
+        yield self.status_bar
+        yield Footer()
+
+    def on_mount(self):
+        self.sub_title = Path(self.mill.preset.source).name
+        self._set_jar()
+        self._show_now()
+        self.set_interval(1.0, self._measure_fps)
+        self.simulate()
+
+    def settings(self) -> dict:
+        """The mill's current settings, as the controls show them."""
+        m = self.mill
+        return {"plate_rpm": m.plate_rpm, "ratio": m.ratio, "jar_rpm": m.jar_rpm, "ramp_time": m.preset.ramp_time,
+                "mu_s": m.friction.mu_s, "mu_d": m.friction.mu_d, "balls": m.n_balls, "pair": m.preset.pair,
+                "jar": m.preset.jar.name}
+
+    def _set_jar(self):
+        p = self.mill.preset
+        for view in (self.top_view, self.section_view):
+            view.set_jar(p.jar.profile.outline, p.jar.height, self.mill.radius)
+        self.readouts.set_targets({"ratio": self.mill.ratio, "critical_ratio": critical_ratio(
+            p.plate_radius, p.jar.radius, float(self.mill.radius.max()))})
+
+    def _new_window(self):
+        if self.window is not None:
+            self.mill.remove_sink(self.window)
+        self.window = WindowStats(self.window_seconds)
+        self.mill.add_sink(self.window)
+        for h in self.history.values():
+            h.clear()
+
+    # ------------------------------------------------------------------ the worker
+    @work(thread=True, exclusive=True, group="simulation")
+    def simulate(self):
+        worker = get_current_worker()
+        self.sim_stopped.clear()
+        mill = self.mill
+        last_frame = last_readout = 0.0
+        rate = deque(maxlen=40)  # (wall, sim) samples for the real-time factor
+        while not worker.is_cancelled:
+            stepped = False
+            try:
+                if self.steps:
+                    self.steps.popleft()
+                    mill.advance(steps=mill.spec.frame_every)
+                    stepped = True
+                elif self.paused:
+                    rate.clear()
+                    time.sleep(0.02)
+                    continue
+                else:
+                    mill.advance(wall_budget=ADVANCE_BUDGET)
+            except SimulationUnstable as err:
+                self.paused = True
+                self.post_message(SimFault(str(err)))
+                continue
+            now = time.perf_counter()
+            rate.append((now, mill.time))
+            if stepped or now - last_frame >= FRAME_PERIOD:
+                last_frame = now
+                self.post_message(self._frame(self._realtime(rate)))
+            if stepped or now - last_readout >= READOUT_PERIOD:
+                last_readout = now
+                self.post_message(self._readouts())
+        self.sim_stopped.set()
+
+    @staticmethod
+    def _realtime(rate: deque) -> float:
+        (w0, t0), (w1, t1) = rate[0], rate[-1]
+        return (t1 - t0) / (w1 - w0) if w1 - w0 > 0.2 and t1 >= t0 else math.nan
+
+    def _frame(self, realtime: float) -> FrameReady:
+        s = self.mill.state()
+        return FrameReady(s["time"], s["position"], s["psi"], s["plate"], s["jar"], realtime)
+
+    def _readouts(self) -> ReadoutsReady:
+        values = self.window.result() or {}
+        for k, h in self.history.items():
+            if math.isfinite(values.get(k, math.nan)):
+                h.append(values[k])
+        return ReadoutsReady(values, {k: list(h) for k, h in self.history.items()})
+
+    def _show_now(self):
+        """Draw the current state at once (start, reset, changes while paused)."""
+        self.on_frame_ready(self._frame(math.nan))
+        self.on_readouts_ready(self._readouts())
+
+    # ------------------------------------------------------------------ from the worker
+    def on_frame_ready(self, msg: FrameReady):
+        self.last_frame = msg
+        self.top_view.show(msg.position, msg.psi)
+        self.section_view.show(msg.position)
+        now = time.perf_counter()
+        if self.paused or now - self._texts_at >= TEXT_PERIOD:  # text is dearer to draw than braille
+            self._texts_at = now
+            self.readouts.set_frame(msg, self.paused)
+            self._status()
+
+    def on_readouts_ready(self, msg: ReadoutsReady):
+        self.last_values = msg.values
+        self.readouts.set_values(msg.values)
+        self.history_plots.show(msg.history)
+
+    def on_sim_fault(self, msg: SimFault):
+        self._message(f"simulation stopped: {msg.text} — press r to reset", error=True)
+        self._status()
+
+    def on_notice(self, msg: Notice):
+        self._message(msg.text, msg.error)
+        self._status()
+
+    def _message(self, text: str, error: bool = False):
+        bar = self.message_bar
+        bar.update(text, layout=False)
+        bar.set_class(error, "error")
+
+    def _measure_fps(self):
+        drawn = self.top_view.drawn
+        previous, self._drawn = getattr(self, "_drawn", drawn), drawn
+        self.fps = drawn - previous
+        self._status()
+
+    def _status(self):
+        t = self.mill.time
+        if self.paused:
+            state = f"❚❚ paused   t = {t:.3f} s"
+        else:
+            rt = self.last_frame.realtime if self.last_frame else math.nan
+            state = f"▶ running   t = {t:.3f} s   {rt:.2f}× real time   view {self.fps:.0f} frames/s"
+        rec = "   ".join(f"● REC {k} {r.path.name}" for k, r in self.recorders.active.items())
+        self.status_bar.update(f"{state}   {rec}", layout=False)
+
+    # ------------------------------------------------------------------ from the controls
+    def _apply(self, change, describe):
+        """Run a LiveMill setter; a refusal (ConfigError) becomes the message and
+        nothing changes. The controls then show what the mill really runs."""
+        try:
+            change()
+        except ConfigError as err:
+            self._message(f"refused: {err}", error=True)
+        else:
+            self._message(describe())
+        self.controls.show(self.settings())
+        self.readouts.set_targets({**self.readouts.targets, "ratio": self.mill.ratio})
+        if self.paused:
+            self._show_now()
+
+    def on_speeds_requested(self, msg: SpeedsRequested):
+        m = self.mill
+        self._apply(lambda: m.set_speeds(msg.plate_rpm, ratio=msg.ratio, jar_rpm=msg.jar_rpm, ramp_time=msg.ramp_time),
+                    lambda: (f"ramping from t = {m.plate.t0:.3f} s over {m.plate.duration:g} s to Ω = {m.plate_rpm:g} rpm, "
+                             f"K = {m.ratio:.4g} (ω = {m.jar_rpm:.4g} rpm); dt = {m.dt * 1e6:.3g} µs"))
+
+    def on_friction_requested(self, msg: FrictionRequested):
+        m = self.mill
+        self._apply(lambda: m.set_friction(msg.mu_s, msg.mu_d, pair=msg.pair),
+                    lambda: f"friction from t = {m.time:.3f} s: {m.friction.name}, μ_s = {m.friction.mu_s:g}, μ_d = {m.friction.mu_d:g}")
+
+    def on_rebuild_requested(self, msg: RebuildRequested):
+        self._message("rebuilding the mill …")
+        self.call_after_refresh(self._rebuild, msg.jar, msg.balls)
+
+    def _rebuild(self, jar, balls):
+        """In the UI (main) thread: more balls than the engine holds means new fields.
+        Recordings end first (their ball count and time base would change)."""
+        m, closed = self.mill, []
+
+        def change():
+            new = m.rebuilt(jar=jar, balls=balls)
+            closed.extend(self.recorders.stop_all(m, "stopped: new jar or ball count"))
+            m.restart(new)
+            self._new_window()
+            self._set_jar()
+
+        self._apply(change, lambda: f"restarted at t = 0: {m.preset.jar.name} jar, {m.n_balls} balls"
+                    + (f"; recordings closed: {', '.join(map(str, closed))}" if closed else ""))
+        self._show_now()
+
+    # ------------------------------------------------------------------ keys
+    def action_pause(self):
+        self.paused = not self.paused
+        self._status()
+        self.readouts.set_frame(self.last_frame, self.paused)
+
+    def action_step(self):
+        self.paused = True
+        self.steps.append(1)
+        self._status()
+
+    def action_reset(self):
+        stopped = self.recorders.stop_all(self.mill, "stopped: reset")
+        self.mill.reset()
+        self._new_window()
+        self._show_now()
+        self._message("reset to t = 0" + (f"; recordings closed: {', '.join(map(str, stopped))}" if stopped else ""))
+
+    def action_record(self, kind: str):
+        self._toggle_recording(kind)
+
+    @work(thread=True, group="files")
+    def _toggle_recording(self, kind: str):
+        """Opening a recording imports rerun / zarr and writes its header: ≈ 1 s the
+        first time, so not in the UI thread."""
+        try:
+            self.post_message(Notice(self.recorders.toggle(kind, self.mill)))
+        except (ImportError, OSError, ValueError) as err:
+            self.post_message(Notice(f"cannot record {kind}: {err}", error=True))
+
+    def action_snapshot(self):
+        f = self.last_frame or self._frame(math.nan)
+        p = self.mill.preset
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        path = self.out_dir / f"taimill-t{f.sim_time:.3f}s-{time.strftime('%Y%m%d-%H%M%S')}.png"
+        title = (f"{p.source}: {p.jar.name} jar, {self.mill.n_balls} balls, {p.pair} μ_s {p.friction.mu_s:g} "
+                 f"μ_d {p.friction.mu_d:g}, Ω = {self.mill.plate_rpm:g} rpm, K = {self.mill.ratio:.4g}")
+        self._save_png(path, dict(title=title, outline=p.jar.profile.outline, height=p.jar.height, position=f.position,
+                                  radius=self.mill.radius, psi=f.psi, history={k: list(h) for k, h in self.history.items()},
+                                  values=dict(self.last_values), time=f.sim_time))
+
+    @work(thread=True, group="files")
+    def _save_png(self, path: Path, figure: dict):
+        save_png(path, **figure)
+        self.post_message(Notice(f"figures saved to {path}"))
+
+    def action_help(self):
+        self.push_screen(HelpScreen())
+
+    def action_leave_field(self):
+        self.set_focus(None)
+
+    async def action_quit(self):
+        """Close recordings, stop the worker after its current chunk, leave."""
+        self.recorders.stop_all(self.mill, "stopped: quit")
+        self.workers.cancel_group(self, "simulation")
+        for _ in range(200):  # the worker leaves after its current chunk (≈ 10 ms)
+            if self.sim_stopped.is_set():
+                break
+            await asyncio.sleep(0.01)
+        self.exit()

@@ -1,0 +1,72 @@
+"""Drawing in the terminal with braille characters: each cell holds 2 × 4 dots, and a
+terminal cell is about twice as tall as wide, so the dots are square and a circle
+stays round. Pure NumPy: masks of dots in, strings out.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# dot (row, column) inside a cell -> bit of the braille code point U+2800 + bits
+_BITS = np.array([[0x01, 0x08], [0x02, 0x10], [0x04, 0x20], [0x40, 0x80]], dtype=np.int32)
+
+
+class Plane:
+    """Maps a box in metres (x to the right, y up) onto a dot grid of `cols` × `rows`
+    cells, centred, one scale for both axes."""
+
+    def __init__(self, cols: int, rows: int, x_range: tuple[float, float], y_range: tuple[float, float]):
+        self.width, self.height = 2 * cols, 4 * rows
+        (x0, x1), (y0, y1) = x_range, y_range
+        self.scale = min((self.width - 1) / (x1 - x0), (self.height - 1) / (y1 - y0))  # dots per m
+        self.cx = 0.5 * (self.width - 1) - self.scale * 0.5 * (x0 + x1)
+        self.cy = 0.5 * (self.height - 1) + self.scale * 0.5 * (y0 + y1)
+
+    def blank(self) -> np.ndarray:
+        return np.zeros((self.height, self.width), dtype=bool)
+
+    def dots(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(row, column) dot indices of points xy (M, 2) in metres."""
+        col = np.rint(self.cx + self.scale * xy[:, 0]).astype(int)
+        row = np.rint(self.cy - self.scale * xy[:, 1]).astype(int)
+        return row, col
+
+    def plot(self, mask: np.ndarray, xy: np.ndarray):
+        """Set the dots under points xy (off-grid points are dropped)."""
+        row, col = self.dots(np.asarray(xy, dtype=float).reshape(-1, 2))
+        ok = (row >= 0) & (row < self.height) & (col >= 0) & (col < self.width)
+        mask[row[ok], col[ok]] = True
+
+    def polyline(self, mask: np.ndarray, xy: np.ndarray):
+        """A polyline, sampled densely enough to leave no gap between dots."""
+        xy = np.asarray(xy, dtype=float)
+        seg = np.diff(xy, axis=0)
+        n = np.maximum(1, np.ceil(np.hypot(seg[:, 0], seg[:, 1]) * self.scale * 2).astype(int))
+        t = [np.arange(k) / k for k in n]
+        pts = np.concatenate([xy[i] + np.outer(ti, seg[i]) for i, ti in enumerate(t)] + [xy[-1:]])
+        self.plot(mask, pts)
+
+    def discs(self, mask: np.ndarray, centres: np.ndarray, radii: np.ndarray):
+        """Filled discs (centres (N, 2), radii (N,), m); at least one dot each."""
+        for (x, y), r in zip(np.asarray(centres, float), np.asarray(radii, float)):
+            rc, cc = self.cy - self.scale * y, self.cx + self.scale * x
+            rr = max(self.scale * r, 0.5)
+            lo_r, hi_r = int(max(0, rc - rr - 1)), int(min(self.height, rc + rr + 2))
+            lo_c, hi_c = int(max(0, cc - rr - 1)), int(min(self.width, cc + rr + 2))
+            if lo_r >= hi_r or lo_c >= hi_c:
+                continue
+            rows, cols = np.ogrid[lo_r:hi_r, lo_c:hi_c]
+            mask[lo_r:hi_r, lo_c:hi_c] |= (rows - rc) ** 2 + (cols - cc) ** 2 <= rr * rr
+
+
+def cells(mask: np.ndarray) -> np.ndarray:
+    """Braille bits per cell (rows/4, cols/2) of a dot mask whose shape divides by (4, 2)."""
+    h, w = mask.shape
+    blocks = mask.reshape(h // 4, 4, w // 2, 2)
+    return np.einsum("rawb,ab->rw", blocks.astype(np.int32), _BITS)
+
+
+def to_text(bits: np.ndarray) -> list[str]:
+    """One string per cell row; empty cells are spaces (U+2800 is blank but not a space)."""
+    code = np.where(bits > 0, 0x2800 + bits, 0x20)
+    return ["".join(map(chr, row)) for row in code]

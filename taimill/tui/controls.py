@@ -1,0 +1,129 @@
+"""The control panel: plate speed Ω, jar speed as K or ω (the other one shown), ramp
+time, friction (μ_s, μ_d or a material pair), jar and ball count.
+
+A field takes effect on Enter. It only parses the number: the ranges live in
+`taimill.physics.live.LIMITS`, checked by the LiveMill (ConfigError naming the field and
+its range); the input's red border while typing uses the same limits. When Ω changes,
+the jar speed last entered (K or ω) is the one held.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+
+from textual.app import ComposeResult
+from textual.containers import Horizontal, Vertical
+from textual.validation import Integer, Number
+from textual.widgets import Input, Label, Select, Static
+
+from taimill.params import MATERIALS_FILE, jar_names
+from taimill.physics.live import LIMITS
+from taimill.tui.messages import FrictionRequested, Notice, RebuildRequested, SpeedsRequested
+
+# input id -> (label, key of LIMITS)
+FIELDS = {
+    "plate-rpm": ("Ω plate rpm", "plate_rpm"),
+    "ratio": ("K = w/Ω", "ratio"),
+    "jar-rpm": ("ω jar rpm", "jar_rpm"),
+    "ramp-time": ("ramp s", "ramp_time"),
+    "mu-s": ("μ_s static", "mu_s"),
+    "mu-d": ("μ_d dynamic", "mu_d"),
+    "balls": ("balls", "balls"),
+}
+
+
+def pairs_for(contact_of_pair: str) -> list[str]:
+    """Friction pairs sharing the contact set of the given pair (materials.toml)."""
+    with open(MATERIALS_FILE, "rb") as f:
+        pairs = tomllib.load(f)["pair"]
+    contact = pairs[contact_of_pair]["contact"]
+    return [name for name, p in pairs.items() if p["contact"] == contact]
+
+
+def shown(key: str, value) -> str:
+    if isinstance(value, float) and not math.isfinite(value):
+        return ""
+    return f"{value:d}" if isinstance(value, int) else f"{value:.5g}"
+
+
+class Controls(Vertical):
+    DEFAULT_CSS = """
+    Controls { width: 34; padding: 0 1; }
+    Controls .row { height: 1; margin: 0 0 1 0; }
+    Controls .row Label { width: 13; }
+    Controls .row Label.held { text-style: bold; color: $accent; }
+    Controls .row Input, Controls .row Select { width: 1fr; }
+    Controls .title { text-style: bold; margin: 0 0 1 0; }
+    """
+
+    def __init__(self, values: dict, **kw):
+        super().__init__(**kw)
+        self.values = values
+        self.hold = "ratio" if math.isfinite(values["ratio"]) else "jar_rpm"
+
+    def compose(self) -> ComposeResult:
+        yield Static("Controls (Enter applies)", classes="title")
+        for fid, (label, key) in FIELDS.items():
+            lo, hi = LIMITS[key]
+            check = Integer(lo, hi) if key == "balls" else Number(lo, hi)
+            with Horizontal(classes="row"):
+                yield Label(label, id=f"label-{fid}")
+                yield Input(shown(key, self.values[key]), id=fid, validators=[check], select_on_focus=True, compact=True)
+        with Horizontal(classes="row"):
+            yield Label("pair")
+            yield Select([(p, p) for p in pairs_for(self.values["pair"])], value=self.values["pair"], allow_blank=False, id="pair", compact=True)
+        with Horizontal(classes="row"):
+            yield Label("jar")
+            yield Select([(j, j) for j in jar_names()], value=self.values["jar"], allow_blank=False, id="jar", compact=True)
+
+    def on_mount(self):
+        self._mark_held()
+
+    def show(self, values: dict):
+        """Display the mill's current settings (after every change, accepted or not)."""
+        self.values = values
+        if self.hold == "ratio" and not math.isfinite(values["ratio"]):
+            self.hold = "jar_rpm"
+        for fid, (_, key) in FIELDS.items():
+            self.query_one(f"#{fid}", Input).value = shown(key, values[key])
+        with self.prevent(Select.Changed):
+            self.query_one("#pair", Select).value = values["pair"]
+            self.query_one("#jar", Select).value = values["jar"]
+        self._mark_held()
+
+    def _mark_held(self):
+        for fid, key in (("ratio", "ratio"), ("jar-rpm", "jar_rpm")):
+            self.query_one(f"#label-{fid}", Label).set_class(self.hold == key, "held")
+
+    def on_input_submitted(self, event: Input.Submitted):
+        event.stop()
+        label, key = FIELDS[event.input.id]
+        text = event.value.strip()
+        try:
+            value = int(text) if key == "balls" else float(text)
+        except ValueError:
+            lo, hi = LIMITS[key]
+            self.post_message(Notice(f"refused {key} = {text!r} ({label}): not a number; allowed range [{lo:g}, {hi:g}]", error=True))
+            self.show(self.values)
+            return
+        v = self.values
+        if key == "plate_rpm":
+            held = {self.hold: v[self.hold]}
+            self.post_message(SpeedsRequested(value, **held))
+        elif key in ("ratio", "jar_rpm"):
+            self.hold = key
+            self.post_message(SpeedsRequested(v["plate_rpm"], **{key: value}))
+        elif key == "ramp_time":
+            self.post_message(SpeedsRequested(v["plate_rpm"], **{self.hold: v[self.hold]}, ramp_time=value))
+        elif key in ("mu_s", "mu_d"):
+            self.post_message(FrictionRequested(**{key: value}))
+        else:
+            self.post_message(RebuildRequested(balls=value))
+
+    def on_select_changed(self, event: Select.Changed):
+        event.stop()
+        if event.select.id == "pair" and event.value != self.values["pair"]:
+            self.post_message(FrictionRequested(pair=event.value))
+        elif event.select.id == "jar" and event.value != self.values["jar"]:
+            self.post_message(RebuildRequested(jar=event.value))

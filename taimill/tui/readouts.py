@@ -1,0 +1,78 @@
+"""Live figures: simulated time and speed, the drive now, and the sliding-window
+summary (impact power normal/tangential, mean SE, collision rate, dissipated power,
+energy-balance error, regime with the critical ratio K_c; SPEC §2, §5)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from textual.widgets import Static
+
+from taimill.params import RPM
+
+# (summary key, label, unit, scale)
+ROWS = (
+    ("impact_power", "impact power", "W", 1),
+    ("impact_power_normal", "  normal", "W", 1),
+    ("impact_power_tangential", "  tangential", "W", 1),
+    ("mean_se", "mean SE", "mJ", 1e3),
+    ("collision_rate", "collision rate", "1/s", 1),
+    ("dissipated_power", "dissipated power", "W", 1),
+    ("energy_balance_error", "energy balance err", "%", 100),
+)
+
+
+def number(value, scale=1.0) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "—"
+    return f"{value * scale:.4g}"
+
+
+class Readouts(Static):
+    DEFAULT_CSS = """
+    Readouts { height: 15; }
+    """
+
+    def __init__(self, window: float, **kw):
+        super().__init__(markup=False, **kw)
+        self.window = window
+        self.frame = None
+        self.values: dict = {}
+        self.targets: dict = {}
+        self.paused = False
+
+    def on_mount(self):
+        self._redraw()
+
+    def set_frame(self, frame, paused: bool):
+        self.frame, self.paused = frame, paused
+        self._redraw()
+
+    def set_values(self, values: dict | None):
+        self.values = values or {}
+        self._redraw()
+
+    def set_targets(self, targets: dict):
+        """plate_rpm, ratio, jar_rpm targets and the critical ratio."""
+        self.targets = targets
+        self._redraw()
+
+    def _redraw(self):
+        """Fixed-width lines, updated without a layout pass (this runs 20 times a second)."""
+        rows = []
+        f, v, g = self.frame, self.values, self.targets
+        rows.append(("sim time", "—" if f is None else f"{f.sim_time:.3f}", "s"))
+        speed = "paused" if self.paused or f is None or not math.isfinite(f.realtime) else f"{f.realtime:.2f}"
+        rows.append(("sim / real time", speed, "" if speed == "paused" else "×"))
+        rows.append(("Ω now", "—" if f is None else f"{f.plate / RPM:.1f}", "rpm"))
+        rows.append(("w = KΩ now", "—" if f is None else f"{f.jar / RPM:.1f}", "rpm"))
+        rows.append(("K target", number(g.get("ratio")), ""))
+        rows.append(("K_c single ball", f"{g['critical_ratio']:.3g}" if g else "—", ""))
+        span = np.diff(v.get("analysis_window", [0.0, 0.0]))[0]
+        part = f" ({span:.2g} s so far)" if 0 < span < 0.99 * self.window else ""
+        rows.append((f"— last {self.window:g} s{part} —", "", ""))
+        for key, label, unit, scale in ROWS:
+            rows.append((label, number(v.get(key), scale), unit))
+        rows.append(("regime", str(v.get("regime", "—")), ""))
+        self.update("\n".join(f"{a:<18} {b:>11} {c}" for a, b, c in rows), layout=False)

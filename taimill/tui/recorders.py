@@ -1,0 +1,142 @@
+"""Recording a live run on demand, from the current simulated time on: a rerun
+recording (.rrd, `taimill.recording.RerunSink`) or a zarr store (`taimill.store.ZarrSink`).
+
+Times in a recording are the mill's simulated times (a recording started at t = 12 s
+starts there). Its summary covers what it received — energy balance counted from its
+first row — plus the live changes made while it ran (`live_changes`: speeds and
+friction are not in the config, which is the state at the start). A reset or a new
+jar / ball count ends every recording (the time or the balls would change under it).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+
+from taimill.sinks import FanOut
+from taimill.summary import SummarySink
+from taimill.tui.window import Rebased
+
+SUFFIX = {"rrd": ".rrd", "zarr": ".zarr"}
+BATCH_SECONDS = 1.0  # simulated s of blocks the summary takes at once (its cost is per block)
+
+
+def new_path(out_dir: Path, kind: str) -> Path:
+    """out_dir/taimill-YYYYmmdd-HHMMSS[-k].rrd|.zarr, never an existing name."""
+    stem = f"taimill-{datetime.now():%Y%m%d-%H%M%S}"
+    path, k = out_dir / f"{stem}{SUFFIX[kind]}", 1
+    while path.exists():
+        k += 1
+        path = out_dir / f"{stem}-{k}{SUFFIX[kind]}"
+    return path
+
+
+def file_sink(kind: str, path: Path):
+    if kind == "rrd":
+        from taimill.recording import RerunSink
+
+        return RerunSink(path)
+    from taimill.store import ZarrSink
+
+    return ZarrSink(path)
+
+
+class Batched:
+    """Buffers the stream for `sink` and passes it on in blocks of ~BATCH_SECONDS."""
+
+    def __init__(self, sink):
+        self.sink = sink
+        self.pending = {"frames": [], "events": [], "energy": []}
+        self.t_flush = None
+
+    def start(self, config, n_balls, radii):
+        self.sink.start(config, n_balls, radii)
+
+    def frames(self, block):
+        self._add("frames", block, block["time"][-1])
+
+    def events(self, block):
+        self._add("events", block, None)
+
+    def energy(self, block):
+        self._add("energy", block, block["time"][-1])
+
+    def _add(self, table, block, t):
+        self.pending[table].append(block)
+        if t is not None:
+            self.t_flush = t if self.t_flush is None else self.t_flush
+            if t - self.t_flush >= BATCH_SECONDS:
+                self.flush()
+                self.t_flush = t
+
+    def flush(self):
+        for table, blocks in self.pending.items():
+            if blocks:
+                getattr(self.sink, table)({k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]})
+            blocks.clear()
+
+    def finish(self, summary, status):
+        self.flush()
+        self.sink.finish(summary, status)
+
+
+class Recording:
+    """One recording attached to a LiveMill: the file's sink and the summary sink."""
+
+    def __init__(self, kind: str, path: Path, mill):
+        self.kind, self.path = kind, path
+        self.t_start, self.wall_start = mill.time, time.perf_counter()
+        self.summary = SummarySink(self.t_start, math.inf)
+        self.batched = Batched(Rebased(self.summary))
+        self.file = file_sink(kind, path)
+        self.sink = FanOut(self.batched, self.file)
+        mill.add_sink(self.sink)
+
+    def stop(self, mill, status: str = "stopped") -> dict:
+        """Detach, then close the file with the summary of what it received."""
+        mill.remove_sink(self.sink)
+        self.batched.flush()
+        t = mill.time
+        result = self.summary.result(t, time.perf_counter() - self.wall_start)
+        result["live_changes"] = [c for c in mill.changes if c["time"] >= self.t_start]
+        result["recorded"] = [self.t_start, t]
+        self.file.finish(result, status)
+        return result
+
+
+class Recorders:
+    """At most one recording of each kind; `toggle` starts or stops it."""
+
+    def __init__(self, out_dir: Path):
+        self.out_dir = Path(out_dir)
+        self.active: dict[str, Recording] = {}
+        self._lock = threading.Lock()  # toggles run in worker threads
+
+    def toggle(self, kind: str, mill) -> str:
+        """Start or stop; returns the line for the message bar."""
+        with self._lock:
+            return self._toggle(kind, mill)
+
+    def _toggle(self, kind: str, mill) -> str:
+        if kind in self.active:
+            rec = self.active.pop(kind)
+            rec.stop(mill)
+            return f"{kind} recording stopped: {rec.path} (t = {rec.t_start:.3f} … {mill.time:.3f} s)"
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        rec = Recording(kind, new_path(self.out_dir, kind), mill)
+        self.active[kind] = rec
+        return f"recording {kind} to {rec.path} from t = {rec.t_start:.3f} s"
+
+    def stop_all(self, mill, status: str) -> list[Path]:
+        paths = []
+        with self._lock:
+            for kind in list(self.active):
+                rec = self.active.pop(kind)
+                rec.stop(mill, status)
+                paths.append(rec.path)
+        return paths

@@ -1,0 +1,124 @@
+"""Figures of a live run over a sliding window of simulated time, from the run's stream
+(sinks.py), computed by the accumulators of `taimill run`'s summary so the live
+numbers mean what the run summary means (SPEC §5, §9).
+
+The energy ledger is cumulative from t = 0; a window (or a recording started mid-run)
+counts drive work and dissipation from its own first row (`rebased`), so its energy
+balance error is relative to the drive work done inside it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+
+from taimill.analysis.events import EventStats
+from taimill.analysis.regime import RegimeFeatures
+from taimill.analysis.rungeometry import RunGeometry
+from taimill.analysis.theory import critical_ratio
+from taimill.summary import EnergyLedger
+
+CUMULATIVE = ("drive_work", "dissipated")
+
+
+def rebased(block: dict, origin: dict) -> dict:
+    """Energy rows with the cumulative columns counted from `origin` (a row, J)."""
+    return block | {k: block[k] - origin[k] for k in CUMULATIVE}
+
+
+class Rebased:
+    """Passes the stream to `sink` with drive work and dissipation counted from the
+    first energy row it sees."""
+
+    def __init__(self, sink):
+        self.sink, self.origin = sink, None
+
+    def start(self, config, n_balls, radii):
+        self.sink.start(config, n_balls, radii)
+
+    def frames(self, block):
+        self.sink.frames(block)
+
+    def events(self, block):
+        self.sink.events(block)
+
+    def energy(self, block):
+        if self.origin is None:
+            self.origin = {k: float(block[k][0]) for k in CUMULATIVE}
+        self.sink.energy(rebased(block, self.origin))
+
+    def finish(self, summary, status):
+        self.sink.finish(summary, status)
+
+
+class WindowStats:
+    """Sink keeping the last `seconds` of simulated time of the stream; `result()` gives
+    the SPEC §9 figures over that window from the accumulators `SummarySink` is made of
+    (event statistics, energy ledger, regime features), without the run-only ones
+    (g(r), wall map) whose set-up would cost more than the window itself."""
+
+    def __init__(self, seconds: float):
+        self.seconds = seconds
+        self.geom = None
+        self._frames: deque = deque()
+        self._events: deque = deque()
+        self._energy: deque = deque()
+
+    def start(self, config, n_balls, radii):
+        self.geom = RunGeometry.from_config(config, radii)
+        self.n_balls, self.radii = n_balls, np.asarray(radii)
+
+    def frames(self, block):
+        self._keep(self._frames, block, block["time"][-1])
+
+    def events(self, block):
+        self._keep(self._events, block, float(np.max(block["t_start"] + block["duration"])))
+
+    def energy(self, block):
+        self._keep(self._energy, block, block["time"][-1])
+
+    def finish(self, summary, status):
+        pass
+
+    def _keep(self, blocks: deque, block: dict, t_last: float):
+        blocks.append((t_last, block))
+        horizon = t_last - self.seconds
+        for table in (self._frames, self._events, self._energy):
+            while table and table[0][0] < horizon:
+                table.popleft()
+
+    @staticmethod
+    def _table(blocks: deque, t0: float, column: str) -> dict | None:
+        """The retained blocks as one table, rows with column ≥ t0 (one call per
+        accumulator: their cost is per block, not per row)."""
+        if not blocks:
+            return None
+        keys = blocks[0][1].keys()
+        table = {k: np.concatenate([b[k] for _, b in blocks]) for k in keys}
+        keep = table[column] >= t0
+        return {k: v[keep] for k, v in table.items()} if keep.any() else None
+
+    def result(self) -> dict | None:
+        """Summary keys over [end - seconds, end] (end: the last energy row, s), or None
+        before the window holds two energy rows."""
+        energy = self._table(self._energy, -math.inf, "time")
+        if energy is None or self.geom is None or len(energy["time"]) < 2:
+            return None
+        t1 = float(energy["time"][-1])
+        t0 = max(t1 - self.seconds, float(energy["time"][0]))
+        tau = t1 - t0
+        stats, ledger, regime = EventStats(t0), EnergyLedger(t0), RegimeFeatures(self.geom, self.radii, t0)
+        events = self._table(self._events, t0, "t_start")
+        if events is not None:
+            stats.add(events)
+            regime.events(events)
+        frames = self._table(self._frames, t0, "time")
+        if frames is not None:
+            regime.frames(frames)
+        energy = {k: v[energy["time"] >= t0] for k, v in energy.items()}
+        ledger.add(rebased(energy, {k: energy[k][0] for k in CUMULATIVE}))
+        out = stats.result(tau, self.geom.volume, self.n_balls) | ledger.result(tau) | regime.result()
+        out["critical_ratio"] = critical_ratio(self.geom.plate_radius, self.geom.jar_radius, self.geom.ball_radius)
+        return out | {"analysis_window": [t0, t1], "sim_seconds": t1}

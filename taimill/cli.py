@@ -102,6 +102,10 @@ def cmd_run(a) -> int:
         from taimill.errors import ConfigError
 
         raise ConfigError("command line", "--out", a.out, "exists; pass --overwrite to replace it")
+    if a.rrd:
+        from taimill.cli_record import check_output
+
+        check_output(a.rrd, a.overwrite)
     from taimill.physics.simulation import run
     from taimill.sinks import NullSink
 
@@ -110,6 +114,11 @@ def cmd_run(a) -> int:
         from taimill.store import ZarrSink
 
         sink = ZarrSink(a.out)
+    if a.rrd:
+        from taimill.recording import RerunSink
+        from taimill.sinks import FanOut
+
+        sink = FanOut(sink, RerunSink(a.rrd))
     show_bar = not a.json or sys.stderr.isatty()
     try:
         if show_bar:
@@ -127,6 +136,8 @@ def cmd_run(a) -> int:
         print(summary_table(summary))
         if a.out:
             print(f"stored in {a.out}")
+        if a.rrd:
+            print(f"recorded in {a.rrd} (open it with `taimill view {a.rrd}`)")
     return 0
 
 
@@ -156,29 +167,6 @@ def _plain(v):
     if isinstance(v, float) and not math.isfinite(v):
         return None
     return v
-
-
-def cmd_drop(a) -> int:
-    from taimill.errors import ConfigError
-    from taimill.physics.calibration import drop_test
-
-    if not 0 < a.h0 <= 10_000:
-        raise ConfigError("command line", "--h0", a.h0, "drop height in mm, allowed range (0, 10000]")
-    if a.radius_mm is not None and not 0 < a.radius_mm <= 100:
-        raise ConfigError("command line", "--radius-mm", a.radius_mm, "allowed range (0, 100]")
-    r = drop_test(a.pair, a.h0 * 1e-3, target=a.target, law=a.law,
-                  radius=None if a.radius_mm is None else a.radius_mm * 1e-3)
-    if a.json:
-        print(json.dumps(_plain(r)))
-    else:
-        print(f"{r['pair']} ({r['law']}), ball of {r['ball_radius'] * 1e3:g} mm radius on the {r['target']}, "
-              f"from h0 = {a.h0:g} mm ({r['impact_speed']:.3f} m/s):")
-        print(f"  restitution e            {r['e']:.4f}")
-        print(f"  rebound height h*        {r['rebound_height'] * 1e3:.1f} mm")
-        print(f"  contact duration         {r['contact_duration'] * 1e6:.1f} µs")
-        print(f"  peak force               {r['peak_force']:.0f} N")
-        print(f"  peak penetration         {r['peak_penetration'] * 1e6:.2f} µm")
-    return 0
 
 
 def cmd_presets(a) -> int:
@@ -218,21 +206,14 @@ def parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="simulate a preset, summarise, store")
     r.add_argument("preset", help="preset TOML file, e.g. presets/p4-cy-steel.toml")
     r.add_argument("--out", help="zarr store to write (RUN.zarr)")
-    r.add_argument("--overwrite", action="store_true", help="replace an existing --out store")
+    r.add_argument("--overwrite", action="store_true", help="replace an existing --out store or --rrd file")
+    r.add_argument("--rrd", help="rerun recording to write (RUN.rrd); open it with `taimill view RUN.rrd`")
     r.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
     _add_overrides(r)
     r.set_defaults(fn=cmd_run)
 
-    c = sub.add_parser("calibrate", help="contact-parameter calibration experiments")
-    csub = c.add_subparsers(dest="experiment", required=True)
-    d = csub.add_parser("drop", help="drop test: restitution and rebound height")
-    d.add_argument("--pair", required=True, help="friction/contact pair, e.g. steel-steel")
-    d.add_argument("--h0", type=float, required=True, help="drop height (mm)")
-    d.add_argument("--target", choices=("plate", "ball"), default="plate")
-    d.add_argument("--law", help="normal law (default: the pair's)")
-    d.add_argument("--radius-mm", type=float, help="ball radius (default: the pair's fitted balls)")
-    d.add_argument("--json", action="store_true")
-    d.set_defaults(fn=cmd_drop)
+    from taimill import cli_calibrate
+    cli_calibrate.register(sub)
 
     sub.add_parser("presets", help="list presets").set_defaults(fn=cmd_presets)
     j = sub.add_parser("jars", help="list jars (area, volume, pieces); 'jars show NAME' draws one")
@@ -242,9 +223,10 @@ def parser() -> argparse.ArgumentParser:
     js = jsub.add_parser("show", help="draw a jar's outline and signed-distance field")
     js.add_argument("name", help="jar name (jars/NAME.toml) or path to a jar TOML")
     js.add_argument("--out", help="image to write, .png or .svg (default jar-NAME.png)")
-    from taimill import cli_report, cli_sweep
+    from taimill import cli_record, cli_report, cli_sweep
     cli_sweep.register(sub)
     cli_report.register(sub)
+    cli_record.register(sub)
     return p
 
 

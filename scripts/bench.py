@@ -35,7 +35,21 @@ others, the busy CPU seconds of every other process per wall second (/proc/stat,
 tick-sampled: ±0.2 for bursty or short measurements). With others near 1 on a
 2-core machine, a 2-thread figure is not trustworthy.
 
-    scripts/bench.py [--quick] [--only reference|scaling] [--json FILE]
+3. Recording overhead (issue 6): the reference run of section 1 on one thread into a
+   NullSink, a RerunSink (.rrd) and a ZarrSink, each in its own worker, interleaved
+   (null, rerun, zarr, null, rerun); overhead = best wall time with the sink / best
+   with the null sink - 1, target ≤ 20 % for rerun. Each worker first runs
+   COMPILE_DURATION into the same kind of sink (compilation, lazy imports: the
+   warm-up column, not in the overhead).
+4. Sweeps (issue 5): chunks of B = 1, 2, 4 reference mills (3 s each) in one kernel on
+   one thread, and two such processes at once (B = 2), as µs per mill-step (this
+   chose B and the process count); then the 21-point K sweep of SPEC §10 (K = 0 ... -4,
+   CY steel, Ω = 200 rpm, 24 s per point; 3 s with --quick, the 24 s wall time then
+   extrapolated linearly) through the public path `taimill.sweep.run_sweep` on one
+   spawned process per core, no store. Timed from the call to the last result: worker start-up, ti.init
+   and compilation included (what a user waits for); CPU time includes the workers.
+
+    scripts/bench.py [--quick] [--only reference|scaling|recording|sweep] [--json FILE]
 """
 
 from __future__ import annotations
@@ -70,6 +84,8 @@ TARGET = {False: 3.0, True: 1.0}  # timed wall seconds per scaling point: full, 
 SETTLE_SECONDS = 0.1  # simulated, before the "settled" row
 KIB_PER_BALL = 30  # peak RSS per ball, measured at 100 000 balls in parallel mode
 WORKER_TIMEOUT = 300  # s per subprocess, set-up and compilation included
+SWEEP_RATIOS = "0:-4:0.2"  # the 21 K values of SPEC §10
+SWEEP_TIMEOUT = 3600  # s, the whole sweep in one measuring subprocess
 MARKER = "BENCH-RESULT "
 
 
@@ -207,7 +223,78 @@ def work_scaling(task: dict) -> dict:
                 sim_to=max(ends) * spec.dt, rss_mib=peak_rss_mib())
 
 
-WORKERS = {"reference": work_reference, "scaling": work_scaling}
+def work_recording(task: dict) -> dict:
+    """The reference preset into one sink ("null", "zarr" or "rerun"), timed after a
+    short run into the same kind of sink (compiles the engine and pays the sink's
+    first-use costs: lazy imports — rerun's first Points3D imports pandas, ≈ 0.7 s —
+    colour tables, codecs; reported as `warm_wall`). The timed run includes the sink's
+    finish (flushing its file)."""
+    from taimill.params import load_preset
+    from taimill.physics.simulation import run
+    from taimill.recording import RerunSink
+    from taimill.sinks import NullSink
+    from taimill.store import ZarrSink
+
+    threads = start_taichi(task["threads"])
+    preset = load_preset(PRESET)
+    kind = task["sink"]
+
+    def sink(path: Path):
+        return NullSink() if kind == "null" else {"zarr": ZarrSink, "rerun": RerunSink}[kind](path)
+
+    with tempfile.TemporaryDirectory(prefix="taimill-bench-") as tmp:
+        out = Path(tmp) / f"run.{kind}"
+        warm = time.perf_counter()
+        run(preset, sink(Path(tmp) / f"warm.{kind}"), duration=COMPILE_DURATION)
+        warm = time.perf_counter() - warm
+        start = clocks()
+        steps = run(preset, sink(out), duration=task["duration"])["steps"]
+        wall, cpu, busy = since(start)
+        size = sum(f.stat().st_size for f in [out, *out.rglob("*")] if f.is_file()) if out.exists() else 0
+    return dict(threads=threads, dt=preset.dt, steps=steps, wall=wall, cpu=cpu, busy=busy, bytes=size,
+                warm_wall=warm, rss_mib=peak_rss_mib())
+
+
+def work_sweep(task: dict) -> dict:
+    """The K sweep through run_sweep on `workers` spawned processes (no store)."""
+    import resource
+
+    from taimill.sweep import Request, parse_values, run_sweep
+
+    req = Request(str(PRESET), {"duration": task["duration"]}, {"ratio": parse_values(SWEEP_RATIOS, "--ratio")})
+
+    def children_cpu() -> float:
+        r = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return r.ru_utime + r.ru_stime
+
+    c0, start = children_cpu(), clocks()
+    rows, _ = run_sweep(req, None, workers=task["workers"], batch=task["batch"])
+    wall, cpu, busy = since(start)
+    return dict(points=len(rows), workers=task["workers"], batch=max(r["batch"] for r in rows), wall=wall,
+                cpu=cpu + children_cpu() - c0, busy=busy, sim=sum(r["sim_seconds"] for r in rows),
+                point_wall=sum(r["wall_seconds"] for r in rows), dt=[min(r["dt"] for r in rows), max(r["dt"] for r in rows)],
+                failed=sum(r["status"] != "complete" for r in rows))
+
+
+def work_batch(task: dict) -> dict:
+    """B copies of the reference mill as one sweep chunk (one Runner, one thread), timed
+    after a short compiling chunk of the same B."""
+    from taimill.params import load_preset
+    from taimill.physics.simulation import init_taichi
+    from taimill.sweepexec import Job, run_chunk
+
+    init_taichi(threads=1)
+    B = task["batch"]
+    for duration in (COMPILE_DURATION, task["duration"]):
+        jobs = [Job(b, load_preset(PRESET, {"duration": duration})) for b in range(B)]
+        start = clocks()
+        results = run_chunk(0, jobs, False)
+    wall, cpu, busy = since(start)
+    return dict(batch=B, steps=sum(r.summary["steps"] for r in results), wall=wall, cpu=cpu, busy=busy)
+
+
+WORKERS = {"reference": work_reference, "scaling": work_scaling, "recording": work_recording, "sweep": work_sweep,
+           "batch": work_batch}
 
 
 def worker_main(task_json: str):
@@ -217,13 +304,13 @@ def worker_main(task_json: str):
 
 
 # ---------------------------------------------------------------- parent side
-def measure(task: dict) -> dict:
+def measure(task: dict, timeout: float = WORKER_TIMEOUT) -> dict:
     """Run one measurement in a fresh interpreter: its result, or {"error": why}."""
     cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", json.dumps(task)]
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=WORKER_TIMEOUT, cwd=ROOT)
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT)
     except subprocess.TimeoutExpired:
-        return {"error": f"timed out after {WORKER_TIMEOUT} s"}
+        return {"error": f"timed out after {timeout} s"}
     for line in proc.stdout.splitlines():
         if line.startswith(MARKER):
             return json.loads(line[len(MARKER):])
@@ -446,11 +533,105 @@ def print_scaling_row(r: dict):
           flush=True)
 
 
+# ---- 3. recording overhead
+RECORDING_ORDER = ("null", "rerun", "zarr", "null", "rerun")  # interleaved: drift hits both
+RECORDING_TARGET = 0.20  # issue 6: a recording may slow a 24 s run by at most 20 %
+
+
+def recording_section(duration: float) -> tuple[list[dict], dict]:
+    print(f"\n3. Recording overhead: {PRESET.relative_to(ROOT)}, {duration:g} s simulated into each sink,"
+          f" one thread, best of {RECORDING_ORDER.count('null')} for null and rerun")
+    print(f"  {'sink':6} {'wall s':>7} {'cpu s':>7} {'file MiB':>8} {'cpu/wall':>8} {'others':>6} {'warm-up s':>9}")
+    rows = []
+    for sink in RECORDING_ORDER:
+        r = measure(dict(kind="recording", sink=sink, duration=duration, threads=1))
+        rows.append(dict(sink=sink, **r))
+        if "error" in r:
+            print(f"  {sink:6} failed: {r['error']}")
+            continue
+        m = load_metrics(r)
+        print(f"  {sink:6} {r['wall']:>7.2f} {r['cpu']:>7.2f} {r['bytes'] / 2**20:>8.1f} {m['cpu_per_wall']:>8.2f}"
+              f" {m['others']:>6.2f} {r['warm_wall']:>9.2f}", flush=True)
+    best = {}  # sink -> smallest wall and smallest cpu seconds over its repeats
+    for sink in dict.fromkeys(RECORDING_ORDER):
+        ok = [r for r in rows if r["sink"] == sink and "error" not in r]
+        if ok:
+            best[sink] = {k: min(r[k] for r in ok) for k in ("wall", "cpu")}
+    overhead = {}
+    if "null" in best:
+        for sink in ("rerun", "zarr"):
+            if sink in best:
+                overhead[sink] = {k: best[sink][k] / best["null"][k] - 1 for k in ("wall", "cpu")}
+                verdict = "" if sink != "rerun" else "; target ≤ 20 %: " + ", ".join(
+                    f"{k} {'met' if v <= RECORDING_TARGET else 'MISSED'}" for k, v in overhead[sink].items())
+                print(f"  {sink} overhead over the null sink: wall {overhead[sink]['wall']:+.1%},"
+                      f" cpu {overhead[sink]['cpu']:+.1%}{verdict}")
+        print("  (cpu counts every thread of the worker: rerun encodes and writes on its own threads;"
+              " with others > 0.5 the wall figures are not trustworthy)")
+    return rows, overhead
+
+
+# ---- 4. sweep
+BATCH_ROWS = ((1, 1), (2, 1), (4, 1), (2, 2))  # (B, concurrent processes)
+
+
+def batching_rows(duration: float) -> list[dict]:
+    """µs per mill-step for B mills in one kernel on one process, and for two such
+    processes at once (they should each keep their one-process rate on two cores)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    print(f"  chunks of B reference mills ({duration:g} s each) on one thread per process:")
+    print(f"  {'B':>3} {'procs':>5} {'µs/mill-step wall':>18} {'cpu':>6} {'mill-s/wall-s':>13} {'cpu/wall':>8} {'others':>6}")
+    rows = []
+    for batch, procs in BATCH_ROWS:
+        with ThreadPoolExecutor(procs) as pool:
+            got = list(pool.map(measure, [dict(kind="batch", batch=batch, duration=duration)] * procs))
+        for r in got:
+            rows.append(dict(procs=procs, **r))
+            if "error" in r:
+                print(f"  {batch:>3} {procs:>5} failed: {r['error']}")
+                continue
+            m = load_metrics(r)
+            print(f"  {batch:>3} {procs:>5} {r['wall'] / r['steps'] * 1e6:>18.3f} {r['cpu'] / r['steps'] * 1e6:>6.3f}"
+                  f" {batch * duration / r['wall']:>13.2f}"
+                  f" {m['cpu_per_wall']:>8.2f} {m['others']:>6.2f}", flush=True)
+    return rows
+
+
+def sweep_section(quick: bool) -> dict:
+    duration = QUICK_DURATION if quick else FULL_DURATION
+    workers = os.cpu_count() or 1
+    print("\n4. Sweeps")
+    batching = batching_rows(QUICK_DURATION)
+    print(f"  K sweep: K = {SWEEP_RATIOS} ({SWEEP_POINTS} points), {PRESET.relative_to(ROOT)}, {duration:g} s per point,"
+          f" {workers} spawned processes, start-up and compilation included")
+    r = measure(dict(kind="sweep", duration=duration, workers=workers, batch=None), timeout=SWEEP_TIMEOUT)
+    r["batching"] = batching
+    if "error" in r:
+        print(f"  failed: {r['error']}")
+        return r
+    scale = FULL_DURATION / duration
+    r.update(duration=duration, wall_for_24s=r["wall"] * scale, wall_for_24s_measured=not quick,
+             idle_estimate_for_24s=r["cpu"] * scale / workers,
+             mill_seconds_per_wall_second_per_core=r["sim"] / r["wall"] / workers,
+             compute_mill_seconds_per_wall_second=r["sim"] / r["point_wall"], **load_metrics(r))
+    how = "measured" if not quick else f"extrapolated x{scale:g} from {duration:g} s per point"
+    print(f"  {r['points']} points, B = {r['batch']}, dt {r['dt'][0] * 1e6:.3f}-{r['dt'][1] * 1e6:.3f} µs, {r['failed']} failed")
+    print(f"  wall {r['wall']:.1f} s; 24 s per point: {r['wall_for_24s']:.0f} s = {r['wall_for_24s'] / 60:.1f} min ({how});"
+          f" target <= 2 min")
+    print(f"  {r['mill_seconds_per_wall_second_per_core']:.2f} simulated s per wall s per core"
+          f" ({r['compute_mill_seconds_per_wall_second']:.2f} per core inside the workers' chunks);"
+          f" cpu/wall {r['cpu_per_wall']:.2f}, others {r['others']:.2f}", flush=True)
+    print(f"  if every core were ours (CPU s x{scale:g} / {workers} cores, start-up scaled too): "
+          f"{r['idle_estimate_for_24s']:.0f} s = {r['idle_estimate_for_24s'] / 60:.1f} min")
+    return r
+
+
 # ---------------------------------------------------------------- main
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="short run for CI (< 2 min)")
-    ap.add_argument("--only", choices=("reference", "scaling"), help="run one section")
+    ap.add_argument("--only", choices=("reference", "scaling", "recording", "sweep"), help="run one section")
     ap.add_argument("--json", type=Path, metavar="FILE", help="write every number to FILE")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -466,6 +647,11 @@ def main():
         report["reference"], report["sweep_estimate_seconds"] = reference_section(duration)
     if args.only in (None, "scaling"):
         report["scaling"], report["scaling_slopes"] = scaling_section(args.quick)
+    if args.only in (None, "recording"):
+        duration = QUICK_DURATION if args.quick else FULL_DURATION
+        report["recording"], report["recording_overhead"] = recording_section(duration)
+    if args.only in (None, "sweep"):
+        report["sweep"] = sweep_section(args.quick)
     report["machine"]["load_end"] = os.getloadavg()
     report["total_wall_seconds"] = time.perf_counter() - t0
     print("\nload: %.2f %.2f %.2f at the end;" % report["machine"]["load_end"],

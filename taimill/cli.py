@@ -227,6 +227,8 @@ def parser() -> argparse.ArgumentParser:
     cli_sweep.register(sub)
     cli_report.register(sub)
     cli_record.register(sub)
+    from taimill import cli_tui
+    cli_tui.register(sub)
     return p
 
 

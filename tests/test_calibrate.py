@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from taimill.calibration.data import TABLE_2_1, load_drop_data
-from taimill.calibration.fit import fit_drops
+from taimill.calibration.fit import FitError, fit_drops
 from taimill.calibration.impacts import oblique
 from taimill.calibration.optimise import brent
 from taimill.cli import main
@@ -72,6 +72,28 @@ def test_brent_finds_the_minimum_inside_its_bracket(f, a, b, c, x_min):
 
 
 # ------------------------------------------------------------------ fits
+def _table(e):
+    from taimill.calibration.data import DropData
+
+    return DropData("table.csv", np.array([0.1, 0.5]), np.array(e), np.array([np.nan, np.nan]))
+
+
+def test_fit_search_finds_a_minimum_next_to_the_end_of_the_range_and_fails_beyond_it():
+    # A stand-in model e = x/(1 + x) per row (x = d in mm): the search must find a
+    # minimum between the last two grid points, and refuse one beyond the range.
+    def model(values):
+        x = np.asarray(values, float)[:, None]
+        return np.repeat(x / (1 + x), 2, axis=1)
+
+    hi = fit_drops("zirconia-zirconia", _table([0.5, 0.5]), model=model)["range"][1]
+    x_near_end = 0.8 * hi
+    fit = fit_drops("zirconia-zirconia", _table([x_near_end / (1 + x_near_end)] * 2), model=model)
+    assert fit["value"] == pytest.approx(x_near_end, rel=2e-3)
+    beyond = 2 * hi / (1 + 2 * hi)
+    with pytest.raises(FitError, match=r"table\.csv: no d in .* the best lies at the upper end"):
+        fit_drops("zirconia-zirconia", _table([beyond] * 2), model=model)
+
+
 def test_fit_recovers_a_known_d_from_synthetic_drops(tmp_path):
     # Issue acceptance: data generated with a known d are fitted back within 2 %. The
     # synthetic drops run at their own automatic dt, the fit at the pair's: the e they
@@ -87,6 +109,21 @@ def test_fit_recovers_a_known_d_from_synthetic_drops(tmp_path):
     assert fit["start"] != pytest.approx(d_true, rel=0.5)  # it had to travel from the eq 2.9/2.11 guess
     assert fit["rms_e"] < 1e-3
     assert fit["uncertainty"] < 0.02 * d_true
+
+
+@pytest.mark.full
+@pytest.mark.parametrize("law,param,key,true", [
+    ("adams-impact", "c_max", "c_max_Ns_per_mm", 0.4),
+    ("hertz-damper", "e", "e", 0.8),
+])
+def test_fit_recovers_c_max_and_e_from_synthetic_drops(tmp_path, law, param, key, true):
+    # As for d: the other fitted parameters come back within 2 %.
+    heights = [0.1, 0.3, 0.5, 0.8]
+    runs = drop_tests("zirconia-zirconia", heights, law=law, contact={"ball_wall": {key: true}})
+    csv = tmp_path / "synthetic.csv"
+    csv.write_text("h0_mm,e\n" + "".join(f"{r['h0'] * 1e3:g},{r['e']!r}\n" for r in runs))
+    fit = fit_drops("zirconia-zirconia", load_drop_data(csv), law=law, param=param)
+    assert fit["param"] == param and fit["value"] == pytest.approx(true, rel=0.02)
 
 
 def test_table_2_1_fit_of_d_next_to_the_thesis_value(table_fit):

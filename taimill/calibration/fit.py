@@ -13,7 +13,8 @@ the same factor (keeping eq 2.16's ratio between them).
 
 Search: a 13-point scan (log-spaced for d and c_max) over the allowed range brackets
 the minimum of χ² = Σ((e_sim - e_meas)/σ)²; Brent's method refines it. A minimum at
-either end of the range means no value in it matches: FitError. Uncertainty:
+either end of the range that a step inside does not improve means no value in it
+matches: FitError. Uncertainty:
 σ_x² = s² / (JᵀJ) with J = ∂e/∂x by central differences and s² = χ²/(n-1) in units
 of σ² (the residuals' own scatter); with one data row, s = 1 (the stated scatter).
 """
@@ -88,7 +89,8 @@ def parameter(name: str | None, law, bb, ball, wall_material: str, data: DropDat
     """The fitted parameter with its first guess at the data's median impact speed v:
     d = Hertz peak penetration (eqs 2.9/2.11, ½mv² = k u^(n+1)/(n+1)), the "expected
     compenetration" the thesis started from; c_max from eq 2.16 with k* of eq 2.17 and
-    the mean measured e; e = the mean measured e."""
+    the mean measured e, divided by step(u_max/d), the fraction of c_max the IMPACT law
+    reaches at that overlap (eq 2.16 assumes full damping); e = the mean measured e."""
     name = name or ("d" if law.law == "adams-impact" else "e")
     adams = law.law == "adams-impact"
     if name not in ("d", "c_max", "e") or (name == "e") == adams:
@@ -105,7 +107,9 @@ def parameter(name: str | None, law, bb, ball, wall_material: str, data: DropDat
         e_eff = 1.0 / (1.0 / ball.material.youngs_modulus + 1.0 / wall.youngs_modulus)  # eq 2.17
         k_star = laws_np.di_maio_stiffness(law.m_eff, v, e_eff, ball.radius)
         zeta = -math.log(e_mean) / math.sqrt(math.log(e_mean) ** 2 + math.pi**2)  # eq 2.15
-        start = 2.0 * zeta * math.sqrt(law.m_eff * k_star) * 1e-3  # eq 2.16, N·s/m → N·s/mm
+        c_216 = 2.0 * zeta * math.sqrt(law.m_eff * k_star)  # eq 2.16, N·s/m
+        u_max = ((law.n + 1) * law.m_eff * v * v / (2 * law.k)) ** (1 / (law.n + 1))
+        start = c_216 / float(laws_np.smoothstep(u_max / law.d)) * 1e-3  # the law damps with c_max·step(u/d) ≤ c_max
         return Parameter("c_max", "c_max_Ns_per_mm", "N·s/mm", True, start / SPAN, start * SPAN, start,
                          law.c * 1e-3, law, bb.c / law.c if law.c else 1.0)
     e, c = _damping_curve(law)
@@ -156,19 +160,25 @@ def fit_drops(pair: str, data: DropData, *, param: str | None = None, law: str |
         return (((e_sim - data.e) / sigma) ** 2).sum(axis=-1)
 
     grid = np.linspace(p.t(p.lo), p.t(p.hi), GRID)
-    e_grid = model(p.x(grid))
-    i = int(np.argmin(chi2(e_grid)))
-    if i in (0, GRID - 1):
-        raise FitError(_no_match(p, data, e_grid, i, bw.law))
-    seen = {}
+    seen = dict(zip(grid, model(p.x(grid))))  # t → simulated e per row
+    c_grid = [chi2(e) for e in seen.values()]
+    i = int(np.argmin(c_grid))
 
     def objective(t):
         seen[t] = model([p.x(t)])[0]
         return chi2(seen[t])
 
-    t_best, _, calls = brent(objective, grid[i - 1], grid[i], grid[i + 1], fb=chi2(e_grid[i]),
-                             xtol=1e-3 if p.log else 1e-4)  # 0.1 % of d or c_max: far below their uncertainty
-    e_best = seen.get(t_best, e_grid[i])
+    calls = 0
+    bracket, fb = grid[max(i - 1, 0) : i + 2], c_grid[i]
+    if i in (0, GRID - 1):  # the minimum lies between the end and its neighbour, or beyond the end
+        inner = grid[i] + (0.02 if i == 0 else -0.02) * (grid[1] - grid[0])
+        fb, calls = objective(inner), 1
+        if fb >= c_grid[i]:
+            raise FitError(_no_match(p, data, seen[grid[i]], i, bw.law))
+        bracket = (grid[0], inner, grid[1]) if i == 0 else (grid[-2], inner, grid[-1])
+    t_best, _, more = brent(objective, *bracket, fb=fb, xtol=1e-3 if p.log else 1e-4)  # 0.1 % of d or c_max
+    calls += more
+    e_best = seen[t_best]
     x_best = float(p.x(t_best))
     h = 1e-2 if p.log else 2e-3
     x_pm = p.x(np.array([t_best - h, t_best + h]))
@@ -193,9 +203,10 @@ def fit_drops(pair: str, data: DropData, *, param: str | None = None, law: str |
     }
 
 
-def _no_match(p: Parameter, data: DropData, e_grid, i: int, law: str) -> str:
+def _no_match(p: Parameter, data: DropData, e, i: int, law: str) -> str:
+    """The message of a fit whose best value is the end i (0 or last) of the range; e:
+    the simulated e per row there."""
     end = "lower" if i == 0 else "upper"
-    e = e_grid[i]
     hint = {
         ("d", "lower"): "d → 0 already damps with the full c_max: a lower e needs a larger c_max (--param c_max)",
         ("d", "upper"): "the contact is nearly elastic there: a higher e needs a smaller c_max (--param c_max)",

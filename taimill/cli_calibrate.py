@@ -96,8 +96,8 @@ def cmd_fit(a) -> int:
         return EXIT_NO_MATCH
     p, u = fit["param"], fit["unit"]
     lines = [
-        f"{fit['pair']} ({fit['law']}): {p} fitted to {fit['data']} ({len(fit['rows'])} drop heights, {fit['evaluations']} simulated batches)",
-        f"  {p} = {fit['value']:.5g} ± {fit['uncertainty']:.2g} {u}   (start {fit['start']:.4g} {u} from eqs 2.9-2.17; "
+        f"{fit['pair']} ({fit['law']}): {p} fitted to {fit['data']} ({len(fit['rows'])} drop height(s), {fit['evaluations']} simulated batches)",
+        f"  {p} = {fit['value']:.5g} ± {fit['uncertainty']:.2g} {u}   (start {fit['start']:.4g} {u}: {fit['start_from']}; "
         f"the pair has {fit['pair_value']:.4g} {u})",
         f"  rms e residual {fit['rms_e']:.4f}, χ² = {fit['chi2']:.2f}"
         + (f", χ²/dof = {fit['chi2_per_dof']:.2f}" if fit["chi2_per_dof"] is not None else ""),

@@ -126,6 +126,20 @@ def test_fit_recovers_c_max_and_e_from_synthetic_drops(tmp_path, law, param, key
     assert fit["param"] == param and fit["value"] == pytest.approx(true, rel=0.02)
 
 
+@pytest.mark.full
+@pytest.mark.parametrize("pair,h0_mm,e,d_thesis", [("steel-steel", 500, 0.516, 0.211), ("zirconia-zirconia", 555, 0.90, 0.114)])
+def test_thesis_procedure_one_drop_height_gives_the_thesis_d(tmp_path, pair, h0_mm, e, d_thesis):
+    # Thesis §2.2.1: d fitted so that one drop (12 mm steel ball from 500 mm, e = 0.516;
+    # zirconia at 3.3 m/s, e = 0.9) rebounds as measured; Tables 3.2 / 5.2 give 0.211 and
+    # 0.114 mm. Measured here: 0.206 and 0.112 mm. 5 %: the thesis' integrator (HHT) and
+    # step differ, and e is quoted to 3 and 1 digits.
+    csv = tmp_path / "one.csv"
+    csv.write_text(f"h0_mm,e\n{h0_mm},{e}\n")
+    fit = fit_drops(pair, load_drop_data(csv))
+    assert fit["value"] == pytest.approx(d_thesis, rel=0.05)
+    assert fit["rows"][0]["e_fit"] == pytest.approx(e, abs=1e-3)
+
+
 def test_table_2_1_fit_of_d_next_to_the_thesis_value(table_fit):
     # Thesis §2.2.1 fitted d = 0.114 mm at one height (3.3 m/s ≈ 555 mm); fitting all
     # eight heights of Table 2.1 must land within 15 % of it (c_max fixed at 0.57 N·s/mm).

@@ -55,6 +55,7 @@ class Parameter:
     lo: float  #: allowed range, table units
     hi: float
     start: float  #: first guess (eqs 2.10-2.17), table units
+    origin: str  #: where the first guess comes from
     current: float  #: the pair's value, table units
     base: NormalLaw  #: the pair's ball-wall law
     ratio: float = 1.0  #: c_max: ball-ball / ball-wall, kept
@@ -101,7 +102,8 @@ def parameter(name: str | None, law, bb, ball, wall_material: str, data: DropDat
     if name == "d":
         u_max = ((law.n + 1) * law.m_eff * v * v / (2 * law.k)) ** (1 / (law.n + 1))
         start = u_max * 1e3
-        return Parameter("d", "d_mm", "mm", True, start / SPAN, start * SPAN, start, law.d * 1e3, law)
+        return Parameter("d", "d_mm", "mm", True, start / SPAN, start * SPAN, start, "Hertz peak overlap, eqs 2.9/2.11",
+                         law.d * 1e3, law)
     if name == "c_max":
         wall = load_material(wall_material)
         e_eff = 1.0 / (1.0 / ball.material.youngs_modulus + 1.0 / wall.youngs_modulus)  # eq 2.17
@@ -111,10 +113,11 @@ def parameter(name: str | None, law, bb, ball, wall_material: str, data: DropDat
         u_max = ((law.n + 1) * law.m_eff * v * v / (2 * law.k)) ** (1 / (law.n + 1))
         start = c_216 / float(laws_np.smoothstep(u_max / law.d)) * 1e-3  # the law damps with c_max·step(u/d) ≤ c_max
         return Parameter("c_max", "c_max_Ns_per_mm", "N·s/mm", True, start / SPAN, start * SPAN, start,
-                         law.c * 1e-3, law, bb.c / law.c if law.c else 1.0)
+                         "eqs 2.15-2.17 over step(u_max/d)", law.c * 1e-3, law, bb.c / law.c if law.c else 1.0)
     e, c = _damping_curve(law)
     lo, hi = max(E_RANGE[0], e[0]), min(E_RANGE[1], e[-1])  # hunt-crossley's clamp keeps e ≳ 0.2
-    return Parameter("e", "e", "-", False, lo, hi, float(np.clip(e_mean, lo, hi)), law.e, law, e_of_c=(e, c))
+    return Parameter("e", "e", "-", False, lo, hi, float(np.clip(e_mean, lo, hi)), "mean measured e", law.e, law,
+                     e_of_c=(e, c))
 
 
 def _damping_curve(law: NormalLaw, points=400):
@@ -196,7 +199,7 @@ def fit_drops(pair: str, data: DropData, *, param: str | None = None, law: str |
     } for h0, em, ef, r, s in zip(data.h0, data.e, e_best, res, sigma)]
     return {
         "pair": pair, "law": bw.law, "data": data.source, "param": p.name, "unit": p.unit,
-        "value": x_best, "uncertainty": uncertainty, "start": p.start, "pair_value": p.current,
+        "value": x_best, "uncertainty": uncertainty, "start": p.start, "start_from": p.origin, "pair_value": p.current,
         "range": [p.lo, p.hi], "chi2": chi2_min, "chi2_per_dof": chi2_min / (n - 1) if n > 1 else None,
         "rms_e": float(np.sqrt(np.mean(res**2))), "within_scatter": all(r["within_scatter"] for r in rows),
         "evaluations": GRID + calls + 2, "rows": rows, "override": p.override(x_best),

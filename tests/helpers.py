@@ -4,7 +4,10 @@ from __future__ import annotations
 
 from taimill.params import NormalLaw, pair_contact
 from taimill.physics import laws_np
-from taimill.physics.calibration import FRICTIONLESS, run_spec, two_sphere_spec  # noqa: F401 (FRICTIONLESS re-exported)
+from taimill.physics import calibration
+from taimill.physics.calibration import run_spec, two_sphere_spec
+
+FRICTIONLESS = calibration.FRICTIONLESS
 
 
 def steel(law=None):

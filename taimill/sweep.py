@@ -14,7 +14,7 @@ from __future__ import annotations
 import itertools
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from taimill.errors import ConfigError
 from taimill.sweepexec import Job, chunk_seconds, run_dask, run_local
@@ -94,7 +94,6 @@ class Request:
     replicas: int = 1
     refine_metric: str | None = None
     refine_rounds: int = 0
-    extra_ratios: dict = field(default_factory=dict)  # curve → K added by refinement
 
     def identity(self) -> dict:
         """What makes two sweeps the same store (refinement may extend either)."""
@@ -115,6 +114,9 @@ def plan(req: Request, ratios_for=None) -> list[dict]:
     if seed0 + req.replicas - 1 > 2**63 - 1:
         raise ConfigError("command line", "--seed", seed0, f"seed + replicas - 1 must stay below 2^63; allowed range [0, {2**63 - req.replicas}]")
     outer = [req.axes.get(k, [None]) for k in AXES[:-1]]
+    n = math.prod(map(len, outer)) * len(req.axes.get("ratio", [None])) * req.replicas
+    if ratios_for is None and n > MAX_POINTS:
+        raise ConfigError("command line", "sweep", n, f"at most {MAX_POINTS} points (values × replicas)")
     points = []
     for combo in itertools.product(*outer):
         fixed = {k: v for k, v in zip(AXES[:-1], combo) if v is not None}
@@ -126,8 +128,6 @@ def plan(req: Request, ratios_for=None) -> list[dict]:
                 ov["ratio"] = k
             p = load_preset(req.preset, ov)
             points.append({"overrides": ov, "values": point_values(p, r), "preset": p})
-    if len(points) > MAX_POINTS:
-        raise ConfigError("command line", "sweep", len(points), f"at most {MAX_POINTS} points (values × replicas)")
     return points
 
 
@@ -180,7 +180,8 @@ def execute(points, store: SweepStore | None, *, batch=None, workers=None, sched
     jobs = list({j.index: j for j in jobs}.values())
     rows = {}
     workers = workers or os.cpu_count() or 1
-    all_chunks = chunks(jobs, batch or auto_batch(len(jobs), workers))
+    # a cluster's size is unknown here and a dask task round trip costs milliseconds: B = 1
+    all_chunks = chunks(jobs, batch or (1 if scheduler else auto_batch(len(jobs), workers)))
     if all_chunks:
         prog = Progress(all_chunks, progress)
         keep = store is not None

@@ -106,7 +106,7 @@ def _figure(table, title, panels, ylabel, scale, peaks, measured=None):
             ax.plot(ks, mean * scale, "o-", ms=3.5, color=color, label=label)
             if np.isfinite(half).any():
                 ax.fill_between(ks, (mean - half) * scale, (mean + half) * scale, color=color, alpha=0.2, lw=0)
-        _mark_peaks(ax, peaks, column, scale, groups, table)
+        _mark_peaks(ax, peaks, column, scale)
         _mark_critical(ax, table)
         ax.set_title(panel, fontsize=10)
         ax.set_xlabel(K_LABEL, fontsize=9)
@@ -132,7 +132,7 @@ def _mark_critical(ax, table):
         ax.axvline(kc, color="0.3", ls="--", lw=1, label="K_c, one ball (SPEC §2)" if n == 0 else None)
 
 
-def _mark_peaks(ax, peaks, column, scale, groups, table):
+def _mark_peaks(ax, peaks, column, scale):
     for p in peaks:
         if p.get("metric") == column and math.isfinite(p.get("ratio", math.nan)):
             ax.plot([p["ratio"]], [p["value"] * scale], "*", ms=12, color="k", zorder=5,

@@ -73,8 +73,9 @@ def _check_dask_worker():
         worker = get_worker()
     except (ImportError, ValueError):
         return
-    if getattr(worker, "nthreads", 1) > 1:
-        raise RuntimeError(f"dask worker {worker.address} runs {worker.nthreads} threads; taimill needs one thread "
+    nthreads = worker.state.nthreads
+    if nthreads > 1:
+        raise RuntimeError(f"dask worker {worker.address} runs {nthreads} threads; taimill needs one thread "
                            "per worker process (start workers with --nthreads 1, LocalCluster(threads_per_worker=1))")
 
 
@@ -160,6 +161,16 @@ def run_dask(chunks: list[list[Job]], address: str, keep_streams: bool, on_progr
     except (OSError, TimeoutError, ValueError) as err:
         raise ConfigError("command line", "--scheduler", address, f"no dask scheduler answered there ({err})") from None
     with client:
+        try:
+            client.wait_for_workers(1, timeout=30)
+        except TimeoutError:
+            pass  # reported below
+        threads = client.nthreads()
+        bad = {w: n for w, n in threads.items() if n > 1}
+        if bad or not threads:
+            why = (f"its workers run {sorted(set(bad.values()))} threads each; taimill needs one thread per worker process"
+                   " (dask worker ADDRESS --nthreads 1)") if bad else "no worker joined it within 30 s"
+            raise ConfigError("command line", "--scheduler", address, why)
         futures = {client.submit(run_chunk, cid, chunk, keep_streams, pure=False): cid
                    for cid, chunk in enumerate(chunks)}
         for fut in as_completed(futures):

@@ -191,12 +191,12 @@ def test_a_preset_runs_with_the_written_pair_file_and_its_fitted_d(table_fit, tm
 
 
 def test_a_fit_that_cannot_match_fails_with_a_clear_message(tmp_path, capsys):
-    # e = 0.999 at 500 mm: no d in the allowed range rebounds that high.
-    csv = tmp_path / "too-elastic.csv"
-    csv.write_text("h0_mm,e\n500,0.999\n")
+    # e = 0.02 at 500 mm: even d → 0 (full damping c_max from first touch) rebounds higher.
+    csv = tmp_path / "too-plastic.csv"
+    csv.write_text("h0_mm,e\n500,0.02\n")
     code, out, err = cli(capsys, "calibrate", "fit", "--pair", "zirconia-zirconia", "--data", csv, "--out", tmp_path / "x.toml")
     assert code == 1 and out == "" and len(err) == 1
-    assert "too-elastic.csv" in err[0] and "no d in" in err[0] and "upper end" in err[0] and "--param c_max" in err[0]
+    assert "too-plastic.csv" in err[0] and "no d in" in err[0] and "lower end" in err[0] and "--param c_max" in err[0]
     assert not (tmp_path / "x.toml").exists()
 
 

@@ -133,8 +133,8 @@ def drop_model(pair: str, law_name: str | None, p: Parameter, heights):
     """values (table units) → e (K, n): plate drops from `heights` run by the engine,
     all candidates in one batch. Each height keeps one dt for every candidate (the
     pair's automatic dt there, or less if the most damped candidate needs it), so the
-    objective is smooth in the parameter, and one run length: 6 contact times of the
-    pair's law (damping shortens a clamped contact)."""
+    objective is smooth in the parameter, and one run length: 3 × twice the contact time
+    of the pair's law (damping shortens a clamped contact)."""
     from taimill.physics.calibration import Drop, resolved_dt, run_drops
 
     ball, jar, bb, bw, friction = pair_contact(pair, law=law_name)
@@ -143,7 +143,7 @@ def drop_model(pair: str, law_name: str | None, p: Parameter, heights):
     dts = [min(dt, resolved_dt(p.wall_law(p.most_damped), v)[1]) for dt, v in zip(dts, speeds)]
 
     def model(values):
-        drops = [Drop(ball, jar, bb, p.wall_law(x), friction, h, "plate", dt, 6 * t)
+        drops = [Drop(ball, jar, bb, p.wall_law(x), friction, h, "plate", dt, 2 * t)
                  for x in values for h, t, dt in zip(heights, t_c, dts)]
         return np.reshape([r["e"] for r in run_drops(drops)], (len(values), len(heights)))
 

@@ -106,9 +106,11 @@ class Drop:
         """Plate: gravity on, the ball starts just above the plate at √(2 g h₀). Ball: two
         free balls meet head-on at √(2 g h₀) without gravity."""
         v0, r = self.speed, self.ball.radius
-        t_c, dt = (self.duration, self.dt) if self.duration and self.dt else resolved_dt(self.law, v0)
-        dt = self.dt or dt
-        steps = int(3 * t_c / dt) + 10
+        t_c, dt = self.duration, self.dt
+        if not (t_c and dt):
+            auto = resolved_dt(self.law, v0)
+            t_c, dt = t_c or auto[0], dt or auto[1]
+        steps = int(3 * t_c / dt) + 10  # the rebound is read from the free flight after contact
         args = (self.ball, self.jar, self.bb, self.bw, self.friction)
         if self.target == "plate":
             return impact_spec(*args, [[0, 0, r + GAP]], [[0, 0, -v0]], gravity=GRAVITY, dt=dt, steps=steps)
@@ -138,7 +140,7 @@ def drop_result(drop: Drop, spec: MillSpec, state, events) -> dict:
 
 
 def run_drops(drops: list[Drop]) -> list[dict]:
-    """All drops in one batch (one kernel launch per ≈ 10⁴ steps)."""
+    """All drops, BATCH mills per kernel (`run_specs`)."""
     specs = [d.spec() for d in drops]
     return [drop_result(d, s, *out) for d, s, out in zip(drops, specs, run_specs(specs))]
 

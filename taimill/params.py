@@ -239,15 +239,55 @@ def load_material(name: str, source="material") -> Material:
     return m
 
 
-def load_friction(name: str, source, key="pair") -> tuple[Friction, str]:
+def load_friction(name: str, source, key="pair", base: Path | None = None) -> tuple[Friction, str]:
+    """A built-in pair, or a pair file (NAME ending in .toml, relative to `base`):
+    (friction, contact-set id for `_contact_laws`)."""
+    if name.endswith(".toml"):
+        return _pair_file(name, source, key, base)
     db = _materials_db()
     if name not in db["pair"]:
-        raise ConfigError(source, key, name, f"must be one of {', '.join(db['pair'])}")
+        raise ConfigError(source, key, name, f"must be one of {', '.join(db['pair'])}, or a pair file NAME.toml")
     t = _Table(db["pair"][name], MATERIALS_FILE, f"pair.{name}.")
     contact = t.get("contact", kind=str)
     friction = _friction(t, name)
     t.done()
     return friction, contact
+
+
+def _pair_file(name: str, source, key, base: Path | None) -> tuple[Friction, str]:
+    """A pair file holds one [pair.NAME] table and the [contact.*] table it uses (same
+    keys and units as materials.toml; materials are the built-in ones). Its contact
+    set's id is "FILE#CONTACT"; a contact name the file lacks is a built-in one."""
+    path = Path(name) if Path(name).is_absolute() or base is None else base / name
+    if not path.exists():
+        raise ConfigError(source, key, name, f"no pair file {path}; built-in pairs: {', '.join(_materials_db()['pair'])}")
+    data = _read_toml(path, key)
+    extra = sorted(set(data) - {"pair", "contact"})
+    if extra:
+        raise ConfigError(path, extra[0], data[extra[0]], "unknown key; a pair file has [pair.NAME] and [contact.NAME] tables")
+    pairs = data.get("pair")
+    if not isinstance(pairs, dict) or len(pairs) != 1:
+        raise ConfigError(path, "pair", list(pairs) if isinstance(pairs, dict) else pairs, "a pair file needs exactly one [pair.NAME] table")
+    (pair_name, table), = pairs.items()
+    t = _Table(table, path, f"pair.{pair_name}.")
+    contact = t.get("contact", kind=str)
+    friction = _friction(t, pair_name)
+    t.done()
+    own = data.get("contact", {})
+    if contact not in own and contact not in _materials_db()["contact"]:
+        raise ConfigError(path, f"pair.{pair_name}.contact", contact, f"no [contact.{contact}] table in the file or built in")
+    return friction, f"{path.resolve()}#{contact}" if contact in own else contact
+
+
+def contact_table(contact: str) -> tuple[dict, Path, str]:
+    """(table, file, name) of a contact-set id from `load_friction`."""
+    if "#" in contact:
+        file, name = contact.rsplit("#", 1)
+        return _read_toml(Path(file), "pair")["contact"][name], Path(file), name
+    db = _materials_db()["contact"]
+    if contact not in db:
+        raise ConfigError(MATERIALS_FILE, "contact", contact, f"must be one of {', '.join(db)}")
+    return db[contact], MATERIALS_FILE, contact
 
 
 def _friction(t: "_Table", name: str, base: Friction | None = None) -> Friction:
@@ -343,11 +383,15 @@ def _normal_law(t: _Table, law: str, k, m_eff, e_eff, r_eff) -> NormalLaw:
     return NormalLaw(law, k, n, c, d, m_eff, e, u_ref)
 
 
-def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source):
-    db = _materials_db()["contact"]
-    if contact not in db:
-        raise ConfigError(MATERIALS_FILE, "contact", contact, f"must be one of {', '.join(db)}")
-    t = _Table(db[contact], MATERIALS_FILE, f"contact.{contact}.")
+def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source, override=None):
+    """(ball-ball, ball-wall) laws of a contact set. `override` replaces entries of its
+    tables, same keys and units, e.g. {"ball_wall": {"d_mm": 0.1}} (calibration fits);
+    range errors then name the command line."""
+    table, file, name = contact_table(contact)
+    override = override or {}
+    table = {**table, **{k: {**table.get(k, {}), **v} for k, v in override.items()}}
+    changed = frozenset(f"contact.{name}.{k}.{leaf}" for k, v in override.items() for leaf in v)
+    t = _Table(table, file, f"contact.{name}.", changed)
     ball_mat = t.get("ball", kind=str)
     wall_mat = t.get("wall", kind=str)
     t.get("ball_radius_mm", lo=0, lo_open=True, hi=1000)
@@ -357,7 +401,7 @@ def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source)
         raise ConfigError(source, "balls.material", balls.material.name, f"the pair's contact set '{contact}' is for {ball_mat} balls")
     if wall_mat != jar.wall_material:
         raise ConfigError(source, "jar", jar.name, f"wall material {jar.wall_material}; the pair's contact set '{contact}' is for {wall_mat} walls")
-    bm, wm = balls.material, load_material(wall_mat, MATERIALS_FILE)
+    bm, wm = balls.material, load_material(wall_mat, file)
     r, m = balls.radius, balls.mass
     k_bb = laws_np.hertz_stiffness(bm.youngs_modulus, bm.poisson, bm.youngs_modulus, bm.poisson, r, r)
     k_bw = laws_np.hertz_stiffness(bm.youngs_modulus, bm.poisson, wm.youngs_modulus, wm.poisson, r)
@@ -369,17 +413,21 @@ def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source)
     return bb, bw
 
 
-def pair_contact(pair: str, radius: float | None = None, law: str | None = None, source="command line"):
-    """Everything a single impact needs for a friction pair, without a preset:
-    (Balls of one ball, Jar of the wall material, ball-ball law, ball-wall law, Friction).
-    radius (m) defaults to the balls the contact set was fitted for."""
-    friction, contact = load_friction(pair, source)
-    db = _materials_db()["contact"][contact]
-    ball = Balls(1, load_material(db["ball"], MATERIALS_FILE), radius or db["ball_radius_mm"] * 1e-3)
-    jar = Jar("plate", "drop test", 10.0, db["wall"], (("circle", {"radius": 1.0}),))  # a 2 m wide plate
+def pair_contact(pair: str, radius: float | None = None, law: str | None = None, source="command line",
+                 contact: dict | None = None):
+    """Everything a single impact needs for a friction pair (a name or a pair file),
+    without a preset: (Balls of one ball, Jar of the wall material, ball-ball law,
+    ball-wall law, Friction). radius (m) defaults to the balls the contact set was
+    fitted for; `contact` overrides entries of the contact set (see `_contact_laws`)."""
+    friction, contact_id = load_friction(pair, source, base=Path.cwd())
+    db, file, name = contact_table(contact_id)
+    t = _Table(db, file, f"contact.{name}.")  # checked in full by _contact_laws
+    radius = radius or t.get("ball_radius_mm", lo=0, lo_open=True, hi=1000) * 1e-3
+    ball = Balls(1, load_material(t.get("ball", kind=str), file), radius)
+    jar = Jar("plate", "drop test", 10.0, t.get("wall", kind=str), (("circle", {"radius": 1.0}),))  # a 2 m wide plate
     if law is not None and law not in laws_np.LAWS:
         raise ConfigError(source, "law", law, f"must be one of {', '.join(laws_np.LAWS)}")
-    bb, bw = _contact_laws(contact, law, ball, jar, source)
+    bb, bw = _contact_laws(contact_id, law, ball, jar, source, contact)
     return ball, jar, bb, bw, friction
 
 
@@ -419,7 +467,10 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     _check_fill(balls, jar, bt.where("count"), bt.where("radius_mm"))
 
     pair = t.get("pair", kind=str)
-    friction, contact = load_friction(pair, t.where("pair"))
+    pair_base = Path.cwd() if t.where("pair") == "command line" else path.parent
+    friction, contact = load_friction(pair, t.where("pair"), base=pair_base)
+    if pair.endswith(".toml"):  # a pair file: its resolved path, valid from any directory
+        pair = str((pair_base / pair).resolve())
     ft = t.table("friction", required=False)
     if ft is not None:  # the pair's friction, tuned by the user
         friction = _friction(ft, f"{pair} (tuned)", friction)

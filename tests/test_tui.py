@@ -2,8 +2,8 @@
 bad values are refused with a message and change nothing, pause/resume, recordings to
 .rrd and zarr appear and read back, quit; snapshots of the main and help screens."""
 
-import asyncio
-import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -169,6 +169,34 @@ async def test_quit_closes_recordings_and_stops_the_worker(mill, tmp_path):
     assert app.sim_stopped.is_set() and app.return_code in (0, None)
     zarr, = tmp_path.glob("*.zarr")
     assert open_run(zarr).status == "stopped: quit"
+
+
+async def test_reset_new_jar_and_png(mill, tmp_path):
+    app = MillApp(mill, out_dir=tmp_path, paused=True)
+    async with app.run_test(size=SIZE) as pilot:
+        await enter(pilot, "plate-rpm", "250")
+        await pilot.press("escape", "r")
+        await pilot.pause()
+        assert mill.time == 0 and mill.plate_rpm == 250 and "reset" in message(app)
+        app.query_one("#jar").value = "HM"
+        await wait_until(pilot, lambda: mill.preset.jar.name == "HM")
+        assert mill.time == 0 and mill.plate_rpm == 250 and "HM jar, 12 balls" in message(app)
+        np.testing.assert_array_equal(app.top_view.outline, mill.preset.jar.profile.outline)
+        app.query_one("#jar").value = "EFV45"  # zirconia walls: not for steel balls
+        await wait_until(pilot, lambda: "refused" in message(app))
+        assert "wall material zirconia" in message(app) and value(app, "jar") == "HM"
+        await pilot.press("g")
+        await wait_until(pilot, lambda: list(tmp_path.glob("*.png")))
+        await wait_until(pilot, lambda: "figures saved" in message(app))
+    png, = tmp_path.glob("*.png")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
+
+
+def test_cli_refuses_bad_input_before_any_kernel(tmp_path):
+    for args, expected in ((["--window", "0"], "--window = 0.0: allowed range [0.1, 600] s"),
+                           (["--plate-rpm", "5000"], "plate_rpm = 5000.0: allowed range [-1000, 1000]")):
+        p = subprocess.run([sys.executable, "-m", "taimill.cli", "tui", str(P4), *args], capture_output=True, text=True, timeout=120)
+        assert p.returncode == 2 and expected in p.stderr, p.stderr
 
 
 def frozen_app(mill, tmp_path):

@@ -184,12 +184,14 @@ class LiveMill:
         lock (opening a file can take a second: the mill runs on meanwhile)."""
         sink.start(self.config(), self.n_balls, self.radius)
         with self._locked():
+            self._drain(report=False)  # what came before is not the new sink's
             self._sinks.append(sink)
             self._out = FanOut(*self._sinks)
 
     def remove_sink(self, sink):
         """Stop streaming to sink (the caller finishes it: nothing reaches it after this)."""
         with self._locked():
+            self._drain(report=False)  # everything up to now reaches it
             if sink in self._sinks:
                 self._sinks.remove(sink)
                 self._out = FanOut(*self._sinks)
@@ -211,28 +213,37 @@ class LiveMill:
             self._lock.release()
 
     def _chunk(self, max_steps: int) -> int:
-        """One kernel launch of at most max_steps steps; returns the steps taken."""
+        """One kernel launch of at most max_steps steps; returns the steps taken. The
+        buffers are drained by `_drain`, or here once a launch stopped early (a full
+        event or frame buffer, or a fault)."""
         while self._waiting:  # let a waiting setter in first (CPython locks are not fair)
             time.sleep(0.0005)
         with self._lock:
-            room = (self.F.frame_capacity - 2) * self.spec.frame_every
+            room = (self.F.frame_capacity - 2 - int(self.F.n_frames[0])) * self.spec.frame_every
             n = max(1, min(max_steps, room, int(self.chunk_seconds / self._step_cost)))
-            self.runner.steps_per_launch = n
             before = int(self.F.step[0])
             t0 = time.perf_counter()
-            fault = self.runner.launch([self._out])[0]
+            self.runner.engine.advance(n)
             wall = time.perf_counter() - t0
             taken = int(self.F.step[0]) - before
-        if fault:
-            raise SimulationUnstable(fault)
+            if taken < n:
+                self._drain()
         if taken:
             self._step_cost = 0.7 * self._step_cost + 0.3 * wall / taken
         return taken
 
+    def _drain(self, report: bool = True):
+        """Stream the buffered frames, events and ledger to the sinks (lock held);
+        raises SimulationUnstable, if `report`, after streaming what came before a fault."""
+        fault = self.runner.drain([self._out])[0]
+        if fault and report:
+            raise SimulationUnstable(fault)
+
     def advance(self, *, wall_budget: float | None = None, steps: int | None = None) -> float:
-        """Run for about wall_budget wall seconds, or exactly `steps` steps, in chunks of
-        ≈ chunk_seconds; returns the simulated seconds advanced. Raises
-        SimulationUnstable (everything up to the fault has reached the sinks)."""
+        """Run for about wall_budget wall seconds, or exactly `steps` steps, in kernel
+        launches of ≈ chunk_seconds, then stream the results to the sinks; returns the
+        simulated seconds advanced. Raises SimulationUnstable (everything up to the
+        fault has reached the sinks)."""
         if (wall_budget is None) == (steps is None):
             raise ValueError("give wall_budget or steps")
         t_start, wall0 = self.time, time.perf_counter()
@@ -245,6 +256,8 @@ class LiveMill:
                     break
             elif time.perf_counter() - wall0 >= wall_budget:
                 break
+        with self._locked():
+            self._drain()
         return self.time - t_start
 
     # ------------------------------------------------------------------ live changes

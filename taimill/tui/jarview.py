@@ -42,6 +42,7 @@ class JarView(Widget):
     def set_jar(self, outline: np.ndarray, height: float, radius: np.ndarray):
         """outline: (M, 2) closed profile, m; height: m; radius: (N,) ball radii, m."""
         self.outline, self.height_m, self.radius = np.asarray(outline), height, np.asarray(radius)
+        self.reach = float(np.hypot(*self.outline.T).max())  #: m, bounding radius
         self.position = np.zeros((0, 3))
         self._static = None
         self._strips = None
@@ -62,7 +63,7 @@ class JarView(Widget):
             x, y = self.outline[:, 0], self.outline[:, 1]
             pad = 0.04 * np.ptp(x)
             if self.view == "top":
-                R = float(np.hypot(x, y).max()) + pad
+                R = self.reach + pad
                 plane = Plane(cols, rows, (-R, R), (-R, R))
                 walls = [self.outline]
             else:
@@ -82,8 +83,7 @@ class JarView(Widget):
         if len(self.position):
             plane.discs(balls, self.position[:, axes], self.radius[: len(self.position)])
         if self.view == "top" and self.psi is not None:
-            R = float(np.hypot(*self.outline.T).max())
-            plane.plot(mark, np.outer(np.linspace(1.0, 1.06, 6), [np.cos(self.psi), np.sin(self.psi)]) * R)
+            plane.plot(mark, np.outer(np.linspace(1.0, 1.06, 6), [np.cos(self.psi), np.sin(self.psi)]) * self.reach)
         return wall, cells(balls), cells(mark)
 
     def _build(self, cols: int, rows: int) -> list[Strip]:
@@ -95,13 +95,18 @@ class JarView(Widget):
             return [Strip.blank(cols, styles[0])] * rows
         wall, balls, mark = self._layers(cols, rows)
         layer = np.where(mark > 0, 3, np.where(balls > 0, 2, np.where(wall > 0, 1, 0)))
-        strips = []
-        for r, line in enumerate(to_text(wall | balls | mark)):
-            row = layer[r]
-            cuts = [0, *(np.flatnonzero(np.diff(row)) + 1), len(row)]
-            strips.append(Strip([Segment(line[a:b], styles[int(row[a])]) for a, b in zip(cuts[:-1], cuts[1:])], cols))
+        text = to_text(wall | balls | mark)
+        # runs of one colour: (row, first column) where the layer changes, one pass
+        starts = np.ones(layer.shape, dtype=bool)
+        starts[:, 1:] = layer[:, 1:] != layer[:, :-1]
+        run_row, run_col = np.nonzero(starts)
+        segments = [[] for _ in range(layer.shape[0])]
+        ends = np.append(run_col[1:], 0)
+        ends[np.append(run_row[1:] != run_row[:-1], True)] = layer.shape[1]
+        for r, a, b in zip(run_row.tolist(), run_col.tolist(), ends.tolist()):
+            segments[r].append(Segment(text[r][a:b], styles[layer[r, a]]))
         self.drawn += 1
-        return strips
+        return [Strip(segs, cols) for segs in segments]
 
     def render_line(self, y: int) -> Strip:
         cols, rows = self.size.width, self.size.height

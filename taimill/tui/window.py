@@ -100,25 +100,30 @@ class WindowStats:
         keep = table[column] >= t0
         return {k: v[keep] for k, v in table.items()} if keep.any() else None
 
-    def result(self) -> dict | None:
+    def result(self, regime: bool = True) -> dict | None:
         """Summary keys over [end - seconds, end] (end: the last energy row, s), or None
-        before the window holds two energy rows."""
+        before the window holds two energy rows. regime=False leaves out the regime
+        (three quarters of the cost: contacts of every feature frame)."""
         energy = self._table(self._energy, -math.inf, "time")
         if energy is None or self.geom is None or len(energy["time"]) < 2:
             return None
         t1 = float(energy["time"][-1])
         t0 = max(t1 - self.seconds, float(energy["time"][0]))
         tau = t1 - t0
-        stats, ledger, regime = EventStats(t0), EnergyLedger(t0), RegimeFeatures(self.geom, self.radii, t0)
+        stats, ledger = EventStats(t0), EnergyLedger(t0)
+        features = RegimeFeatures(self.geom, self.radii, t0) if regime else None
         events = self._table(self._events, t0, "t_start")
         if events is not None:
             stats.add(events)
-            regime.events(events)
-        frames = self._table(self._frames, t0, "time")
+            if features:
+                features.events(events)
+        frames = self._table(self._frames, t0, "time") if features else None
         if frames is not None:
-            regime.frames(frames)
+            features.frames(frames)
         energy = {k: v[energy["time"] >= t0] for k, v in energy.items()}
         ledger.add(rebased(energy, {k: energy[k][0] for k in CUMULATIVE}))
-        out = stats.result(tau, self.geom.volume, self.n_balls) | ledger.result(tau) | regime.result()
+        out = stats.result(tau, self.geom.volume, self.n_balls) | ledger.result(tau)
+        if features:
+            out |= features.result()
         out["critical_ratio"] = critical_ratio(self.geom.plate_radius, self.geom.jar_radius, self.geom.ball_radius)
         return out | {"analysis_window": [t0, t1], "sim_seconds": t1}

@@ -2,9 +2,17 @@
 """Reproduce the five reference results of SPEC §6 as sweeps and write
 results/thesis_comparison.md (claim, thesis value, our value, agrees) and its figures.
 
-Full length (the acceptance run; ≈ 330 points of 24 s, analysis from 4 s, resumable):
+Full length (the acceptance run; 318 points of 24 s, analysis from 4 s, resumable).
+CPU per 24 s point measured on a busy 2-core machine: CY 11 s, HM 19 s, 3L 39 s,
+T 130 s, graphite 6/24 balls 20/85 s, EFV45 44 s; ≈ 3.3 core-hours in all, so about
+100 min on two idle cores. Run it in pieces if needed (each piece resumes its stores),
+then once more with every claim to write the complete table from the stores:
 
-    scripts/reproduce_thesis.py
+    scripts/reproduce_thesis.py --claims 1,2      # CY steel (3 Ω), fluorite
+    scripts/reproduce_thesis.py --claims 3        # HM, 1L, 3L, T
+    scripts/reproduce_thesis.py --claims 4        # graphite 6, 12, 24 balls
+    scripts/reproduce_thesis.py --claims 5        # EFV45, 60 and 80 rpm
+    scripts/reproduce_thesis.py                   # all five (reads the stores)
 
 Reduced (proves the pipeline; its verdicts are NOT the reproduction):
 

@@ -192,6 +192,17 @@ async def test_reset_new_jar_and_png(mill, tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
 
 
+async def test_unstable_run_stops_with_a_message_and_reset_recovers(mill, tmp_path):
+    app = MillApp(mill, out_dir=tmp_path)
+    async with app.run_test(size=SIZE) as pilot:
+        mill.F.bad_ball[0], mill.F.status[0] = 3, 2  # as the kernel flags a ball through the wall
+        await wait_until(pilot, lambda: "simulation stopped" in message(app))
+        assert "ball 3 left the jar through a wall" in message(app) and app.paused
+        await pilot.press("r", "p")
+        await wait_until(pilot, lambda: mill.time > 0.01)
+        assert not app.paused
+
+
 def test_cli_refuses_bad_input_before_any_kernel(tmp_path):
     for args, expected in ((["--window", "0"], "--window = 0.0: allowed range [0.1, 600] s"),
                            (["--plate-rpm", "5000"], "plate_rpm = 5000.0: allowed range [-1000, 1000]")):

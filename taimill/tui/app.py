@@ -244,7 +244,9 @@ class MillApp(App):
             state = f"❚❚ paused   t = {t:.3f} s"
         else:
             rt = self.last_frame.realtime if self.last_frame else math.nan
-            state = f"▶ running   t = {t:.3f} s   {rt:.2f}× real time   view {self.fps:.0f} frames/s"
+            rate = f"{rt:.2f}×" if math.isfinite(rt) else "—"
+            fps = f"{self.fps:.0f}" if math.isfinite(self.fps) else "—"
+            state = f"▶ running   t = {t:.3f} s   {rate} real time   view {fps} frames/s"
         rec = "   ".join(f"● REC {k} {r.path.name}" for k, r in self.recorders.active.items())
         self.status_bar.update(f"{state}   {rec}", layout=False)
 

@@ -63,8 +63,11 @@ class Readouts(Static):
         rows = []
         f, v, g = self.frame, self.values, self.targets
         rows.append(("sim time", "—" if f is None else f"{f.sim_time:.3f}", "s"))
-        speed = "paused" if self.paused or f is None or not math.isfinite(f.realtime) else f"{f.realtime:.2f}"
-        rows.append(("sim / real time", speed, "" if speed == "paused" else "×"))
+        if self.paused:
+            speed = ("paused", "")
+        else:
+            speed = (f"{f.realtime:.2f}", "×") if f is not None and math.isfinite(f.realtime) else ("—", "")
+        rows.append(("sim / real time", *speed))
         rows.append(("Ω now", "—" if f is None else f"{f.plate / RPM:.1f}", "rpm"))
         rows.append(("w = KΩ now", "—" if f is None else f"{f.jar / RPM:.1f}", "rpm"))
         rows.append(("K target", number(g.get("ratio")), ""))

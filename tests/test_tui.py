@@ -147,10 +147,11 @@ async def test_record_rrd_and_zarr_mid_run(mill, tmp_path):
     run = open_run(zarr)
     frames = run.frames["time"]
     assert run.status == "stopped" and len(frames) >= 10
-    assert frames[0] >= t_start and np.all(np.diff(frames) > 0)
+    assert t_start <= frames[0] < t_start + 0.011 and np.all(np.diff(frames) > 0)  # from the key on
     assert run.summary["recorded"][0] == t_start and run.summary["events"] > 0
     assert [c["mu_s"] for c in run.summary["live_changes"]] == [0.9]
-    assert len(run.events["t_start"]) > 0 and run.events["t_start"].min() >= t_start
+    ev = run.events  # events are streamed when they end: a contact open at the key press counts
+    assert len(ev["t_start"]) > 0 and (ev["t_start"] + ev["duration"]).min() >= t_start
     balls = rr.chunk.RrdReader(rrd).stream().collect().reader(index=scene.TIME, contents=scene.BALLS).to_arrow_table()
     times = np.sort([x.total_seconds() for x in balls[scene.TIME].to_pylist()])
     # the two recordings overlap (keys pressed one after the other): the same frames there

@@ -180,11 +180,12 @@ class LiveMill:
 
     # ------------------------------------------------------------------ sinks
     def add_sink(self, sink):
-        """Stream everything from now on to sink. Its start() runs first, outside the
-        lock (opening a file can take a second: the mill runs on meanwhile)."""
-        sink.start(self.config(), self.n_balls, self.radius)
+        """Stream everything from now on to sink: its start() gets the config at
+        `live_start_time` = now, and the mill waits for it (so that nothing between is
+        lost; call from a worker thread if opening the sink takes long)."""
         with self._locked():
             self._drain(report=False)  # what came before is not the new sink's
+            sink.start(self.config(), self.n_balls, self.radius)
             self._sinks.append(sink)
             self._out = FanOut(*self._sinks)
 

@@ -2,7 +2,7 @@
 
 The simulation runs in one thread worker (`simulate`) that advances the LiveMill in
 ≈ 10 ms kernel chunks (NOTES.md: a kernel holds the GIL) and reports only through
-messages: a frame every FRAME_PERIOD of wall time (coalesced), the window readouts
+messages: a frame after every FRAME_PERIOD of running (coalesced), the window readouts
 every READOUT_PERIOD. Changes go the other way through the LiveMill's locked setters,
 called from the UI thread; the LiveMill must have been built (and its kernels
 compiled) in the main thread before the app starts.
@@ -37,9 +37,10 @@ from taimill.tui.readouts import Readouts
 from taimill.tui.recorders import Recorders
 from taimill.tui.window import WindowStats
 
-FRAME_PERIOD = 1 / 15  # wall s between frames sent to the views (the issue asks ≥ 10 /s)
+FRAME_PERIOD = 0.045  # wall s of simulation between frames: one advance() call (≈ 4 launches of
+# ≈ 10 ms, one drain), then a frame; measured 13-14 frames/s drawn (the issue asks ≥ 10)
+YIELD = 0.006  # wall s the worker sleeps after each frame: the GIL to the UI thread to draw it
 READOUT_PERIOD = 1.0  # wall s between window summaries (each ≈ 60 ms of NumPy for 12 balls)
-ADVANCE_BUDGET = 0.05  # wall s per advance() call: five launches, then one drain to the sinks
 REGIME_EVERY = 3  # readouts per regime classification (the dearest figure)
 TEXT_PERIOD = 0.25  # wall s between updates of the time and speed texts
 HISTORY = 120  # readouts kept for the sparklines (two minutes)
@@ -119,6 +120,14 @@ class MillApp(App):
         self._show_now()
         self.set_interval(1.0, self._measure_fps)
         self.simulate()
+        self._import_recorders()
+
+    @work(thread=True, group="files")
+    def _import_recorders(self):
+        """Import rerun and zarr now (≈ 1 s): a recording then opens in ≈ 0.15 s, which
+        the mill waits for (LiveMill.add_sink)."""
+        import taimill.recording  # noqa: F401
+        import taimill.store  # noqa: F401
 
     def settings(self) -> dict:
         """The mill's current settings, as the controls show them."""
@@ -148,7 +157,7 @@ class MillApp(App):
         worker = get_current_worker()
         self.sim_stopped.clear()
         mill = self.mill
-        last_frame = last_readout = 0.0
+        last_readout = 0.0
         readouts = 0
         rate = deque(maxlen=40)  # (wall, sim) samples for the real-time factor
         while not worker.is_cancelled:
@@ -163,16 +172,15 @@ class MillApp(App):
                     time.sleep(0.02)
                     continue
                 else:
-                    mill.advance(wall_budget=ADVANCE_BUDGET)
+                    mill.advance(wall_budget=FRAME_PERIOD)
             except SimulationUnstable as err:
                 self.paused = True
                 self.post_message(SimFault(str(err)))
                 continue
             now = time.perf_counter()
             rate.append((now, mill.time))
-            if stepped or now - last_frame >= FRAME_PERIOD:
-                last_frame = now
-                self.post_message(self._frame(self._realtime(rate)))
+            self.post_message(self._frame(self._realtime(rate)))
+            time.sleep(YIELD)
             if stepped or now - last_readout >= READOUT_PERIOD:
                 last_readout, readouts = now, readouts + 1
                 self.post_message(self._readouts(regime=stepped or readouts % REGIME_EVERY == 0))

@@ -85,22 +85,49 @@ class Batched:
         self.sink.finish(summary, status)
 
 
+class RecordingSummary:
+    """Sink: the SPEC §9 summary of what a recording receives, from its start time on
+    (the config's `live_start_time`), energy counted from its first row."""
+
+    def start(self, config, n_balls, radii):
+        self.t_start = float(config["live_start_time"])
+        self.summary = SummarySink(self.t_start, math.inf)
+        self.sink = Batched(Rebased(self.summary))
+        self.sink.start(config, n_balls, radii)
+
+    def frames(self, block):
+        self.sink.frames(block)
+
+    def events(self, block):
+        self.sink.events(block)
+
+    def energy(self, block):
+        self.sink.energy(block)
+
+    def finish(self, summary, status):
+        pass
+
+    def result(self, t_end: float, wall: float) -> dict:
+        self.sink.flush()
+        return self.summary.result(t_end, wall)
+
+
 class Recording:
-    """One recording attached to a LiveMill: the file's sink and the summary sink."""
+    """One recording attached to a LiveMill: the file's sink and its summary. It starts
+    at the simulated time the mill had when the sink was attached (`t_start`)."""
 
     def __init__(self, kind: str, path: Path, mill):
         self.kind, self.path = kind, path
-        self.t_start, self.wall_start = mill.time, time.perf_counter()
-        self.summary = SummarySink(self.t_start, math.inf)
-        self.batched = Batched(Rebased(self.summary))
+        self.wall_start = time.perf_counter()
+        self.summary = RecordingSummary()
         self.file = file_sink(kind, path)
-        self.sink = FanOut(self.batched, self.file)
+        self.sink = FanOut(self.summary, self.file)
         mill.add_sink(self.sink)
+        self.t_start = self.summary.t_start
 
     def stop(self, mill, status: str = "stopped") -> dict:
         """Detach, then close the file with the summary of what it received."""
         mill.remove_sink(self.sink)
-        self.batched.flush()
         t = mill.time
         result = self.summary.result(t, time.perf_counter() - self.wall_start)
         result["live_changes"] = [c for c in mill.changes if c["time"] >= self.t_start]
@@ -124,8 +151,9 @@ class Recorders:
 
     def _toggle(self, kind: str, mill) -> str:
         if kind in self.active:
-            rec = self.active.pop(kind)
+            rec = self.active[kind]
             rec.stop(mill)
+            del self.active[kind]  # after the file is closed: `active` says what is open
             return f"{kind} recording stopped: {rec.path} (t = {rec.t_start:.3f} … {mill.time:.3f} s)"
         self.out_dir.mkdir(parents=True, exist_ok=True)
         rec = Recording(kind, new_path(self.out_dir, kind), mill)
@@ -136,7 +164,8 @@ class Recorders:
         paths = []
         with self._lock:
             for kind in list(self.active):
-                rec = self.active.pop(kind)
+                rec = self.active[kind]
                 rec.stop(mill, status)
+                del self.active[kind]
                 paths.append(rec.path)
         return paths

@@ -167,7 +167,7 @@ async def test_quit_closes_recordings_and_stops_the_worker(mill, tmp_path):
         await wait_until(pilot, lambda: app.recorders.active)
         await pilot.press("q")
         await wait_until(pilot, lambda: not app.is_running)
-    assert app.sim_stopped.is_set() and app.return_code in (0, None)
+    assert app.loop.stopped.is_set() and app.return_code in (0, None)
     zarr, = tmp_path.glob("*.zarr")
     assert open_run(zarr).status == "stopped: quit"
 
@@ -198,10 +198,10 @@ async def test_unstable_run_stops_with_a_message_and_reset_recovers(mill, tmp_pa
     async with app.run_test(size=SIZE) as pilot:
         mill.F.bad_ball[0], mill.F.status[0] = 3, 2  # as the kernel flags a ball through the wall
         await wait_until(pilot, lambda: "simulation stopped" in message(app))
-        assert "ball 3 left the jar through a wall" in message(app) and app.paused
+        assert "ball 3 left the jar through a wall" in message(app) and app.loop.paused
         await pilot.press("r", "p")
         await wait_until(pilot, lambda: mill.time > 0.01)
-        assert not app.paused
+        assert not app.loop.paused
 
 
 def test_cli_refuses_bad_input_before_any_kernel(tmp_path):

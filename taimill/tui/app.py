@@ -1,20 +1,17 @@
 """`MillApp`: the live mill in the terminal.
 
-The simulation runs in one thread worker (`simulate`) that advances the LiveMill in
-≈ 10 ms kernel chunks (NOTES.md: a kernel holds the GIL) and reports only through
-messages: a frame after every FRAME_PERIOD of running (coalesced), the window readouts
-every READOUT_PERIOD. Changes go the other way through the LiveMill's locked setters,
-called from the UI thread; the LiveMill must have been built (and its kernels
-compiled) in the main thread before the app starts.
+The simulation runs in one thread worker (`simulate`, body in simloop.py) and reports
+only through messages (frames, readouts, faults). Changes go the other way through the
+LiveMill's locked setters, called from the UI thread; the LiveMill must have been built
+(and its kernels compiled) in the main thread before the app starts.
 """
 
 from __future__ import annotations
 
 import asyncio
+import importlib
 import math
-import threading
 import time
-from collections import deque
 from pathlib import Path
 
 from textual import work
@@ -25,25 +22,19 @@ from textual.widgets import Footer, Header, Static
 from textual.worker import get_current_worker
 
 from taimill.analysis.theory import critical_ratio
-from taimill.errors import ConfigError, SimulationUnstable
+from taimill.errors import ConfigError
 from taimill.tui.controls import Controls
 from taimill.tui.figure import save_png
 from taimill.tui.help import HelpScreen
-from taimill.tui.history import SERIES, History
+from taimill.tui.history import History
 from taimill.tui.jarview import JarView
 from taimill.tui.messages import (FrameReady, FrictionRequested, Notice, ReadoutsReady, RebuildRequested, SimFault,
                                   SpeedsRequested)
 from taimill.tui.readouts import Readouts
 from taimill.tui.recorders import Recorders
-from taimill.tui.window import WindowStats
+from taimill.tui.simloop import SimulationLoop
 
-FRAME_PERIOD = 0.045  # wall s of simulation between frames: one advance() call (≈ 4 launches of
-# ≈ 10 ms, one drain), then a frame; measured 13-14 frames/s drawn (the issue asks ≥ 10)
-YIELD = 0.006  # wall s the worker sleeps after each frame: the GIL to the UI thread to draw it
-READOUT_PERIOD = 1.0  # wall s between window summaries (each ≈ 60 ms of NumPy for 12 balls)
-REGIME_EVERY = 3  # readouts per regime classification (the dearest figure)
 TEXT_PERIOD = 0.25  # wall s between updates of the time and speed texts
-HISTORY = 120  # readouts kept for the sparklines (two minutes)
 HINT = "Enter applies a field · Esc leaves it · letter keys act outside fields · ? help"
 
 
@@ -78,18 +69,12 @@ class MillApp(App):
         self.mill = mill
         self.out_dir = Path(out_dir)
         self.window_seconds = window
-        self.paused = paused
+        self.loop = SimulationLoop(mill, window, paused)
         self.recorders = Recorders(self.out_dir)
-        self.steps: deque = deque()  # step requests, UI -> worker (deque ops are atomic)
-        self.history = {k: deque(maxlen=HISTORY) for k in SERIES}
         self.last_frame: FrameReady | None = None
         self.last_values: dict = {}
-        self._regime: dict = {}
         self.fps = math.nan  # frames drawn per wall s, measured
         self._texts_at = 0.0
-        self.window = None
-        self._new_window()
-        self.sim_stopped = threading.Event()
 
     # ------------------------------------------------------------------ layout
     def compose(self) -> ComposeResult:
@@ -126,8 +111,8 @@ class MillApp(App):
     def _import_recorders(self):
         """Import rerun and zarr now (≈ 1 s): a recording then opens in ≈ 0.15 s, which
         the mill waits for (LiveMill.add_sink)."""
-        import taimill.recording  # noqa: F401
-        import taimill.store  # noqa: F401
+        importlib.import_module("taimill.recording")
+        importlib.import_module("taimill.store")
 
     def settings(self) -> dict:
         """The mill's current settings, as the controls show them."""
@@ -143,73 +128,16 @@ class MillApp(App):
         self.readouts.set_targets({"ratio": self.mill.ratio, "critical_ratio": critical_ratio(
             p.plate_radius, p.jar.radius, float(self.mill.radius.max()))})
 
-    def _new_window(self):
-        if self.window is not None:
-            self.mill.remove_sink(self.window)
-        self.window = WindowStats(self.window_seconds)
-        self.mill.add_sink(self.window)
-        for h in self.history.values():
-            h.clear()
-
     # ------------------------------------------------------------------ the worker
     @work(thread=True, exclusive=True, group="simulation")
     def simulate(self):
         worker = get_current_worker()
-        self.sim_stopped.clear()
-        mill = self.mill
-        last_readout = 0.0
-        readouts = 0
-        rate = deque(maxlen=40)  # (wall, sim) samples for the real-time factor
-        while not worker.is_cancelled:
-            stepped = False
-            try:
-                if self.steps:
-                    self.steps.popleft()
-                    mill.advance(steps=mill.spec.frame_every)
-                    stepped = True
-                elif self.paused:
-                    rate.clear()
-                    time.sleep(0.02)
-                    continue
-                else:
-                    mill.advance(wall_budget=FRAME_PERIOD)
-            except SimulationUnstable as err:
-                self.paused = True
-                self.post_message(SimFault(str(err)))
-                continue
-            now = time.perf_counter()
-            rate.append((now, mill.time))
-            self.post_message(self._frame(self._realtime(rate)))
-            time.sleep(YIELD)
-            if stepped or now - last_readout >= READOUT_PERIOD:
-                last_readout, readouts = now, readouts + 1
-                self.post_message(self._readouts(regime=stepped or readouts % REGIME_EVERY == 0))
-        self.sim_stopped.set()
-
-    @staticmethod
-    def _realtime(rate: deque) -> float:
-        (w0, t0), (w1, t1) = rate[0], rate[-1]
-        return (t1 - t0) / (w1 - w0) if w1 - w0 > 0.2 and t1 >= t0 else math.nan
-
-    def _frame(self, realtime: float) -> FrameReady:
-        s = self.mill.state()
-        return FrameReady(s["time"], s["position"], s["psi"], s["plate"], s["jar"], realtime)
-
-    def _readouts(self, regime: bool = True) -> ReadoutsReady:
-        """The window figures; the regime, when not asked for, is the last one computed."""
-        values = self.window.result(regime) or {}
-        if regime:
-            self._regime = {k: v for k, v in values.items() if k.startswith("regime")}
-        values = self._regime | values
-        for k, h in self.history.items():
-            if math.isfinite(values.get(k, math.nan)):
-                h.append(values[k])
-        return ReadoutsReady(values, {k: list(h) for k, h in self.history.items()})
+        self.loop.run(self.post_message, lambda: worker.is_cancelled)
 
     def _show_now(self):
         """Draw the current state at once (start, reset, changes while paused)."""
-        self.on_frame_ready(self._frame(math.nan))
-        self.on_readouts_ready(self._readouts())
+        self.on_frame_ready(self.loop.frame())
+        self.on_readouts_ready(self.loop.readouts())
 
     # ------------------------------------------------------------------ from the worker
     def on_frame_ready(self, msg: FrameReady):
@@ -217,9 +145,9 @@ class MillApp(App):
         self.top_view.show(msg.position, msg.psi)
         self.section_view.show(msg.position)
         now = time.perf_counter()
-        if self.paused or now - self._texts_at >= TEXT_PERIOD:  # text is dearer to draw than braille
+        if self.loop.paused or now - self._texts_at >= TEXT_PERIOD:  # text is dearer to draw than braille
             self._texts_at = now
-            self.readouts.set_frame(msg, self.paused)
+            self.readouts.set_frame(msg, self.loop.paused)
             self._status()
 
     def on_readouts_ready(self, msg: ReadoutsReady):
@@ -248,7 +176,7 @@ class MillApp(App):
 
     def _status(self):
         t = self.mill.time
-        if self.paused:
+        if self.loop.paused:
             state = f"❚❚ paused   t = {t:.3f} s"
         else:
             rt = self.last_frame.realtime if self.last_frame else math.nan
@@ -270,7 +198,7 @@ class MillApp(App):
             self._message(describe())
         self.controls.show(self.settings())
         self.readouts.set_targets({**self.readouts.targets, "ratio": self.mill.ratio})
-        if self.paused:
+        if self.loop.paused:
             self._show_now()
 
     def on_speeds_requested(self, msg: SpeedsRequested):
@@ -297,7 +225,7 @@ class MillApp(App):
             new = m.rebuilt(jar=jar, balls=balls)
             closed.extend(self.recorders.stop_all(m, "stopped: new jar or ball count"))
             m.restart(new)
-            self._new_window()
+            self.loop.new_window()
             self._set_jar()
 
         self._apply(change, lambda: f"restarted at t = 0: {m.preset.jar.name} jar, {m.n_balls} balls"
@@ -306,19 +234,19 @@ class MillApp(App):
 
     # ------------------------------------------------------------------ keys
     def action_pause(self):
-        self.paused = not self.paused
+        self.loop.paused = not self.loop.paused
         self._status()
-        self.readouts.set_frame(self.last_frame, self.paused)
+        self.readouts.set_frame(self.last_frame, self.loop.paused)
 
     def action_step(self):
-        self.paused = True
-        self.steps.append(1)
+        self.loop.paused = True
+        self.loop.steps.append(1)
         self._status()
 
     def action_reset(self):
         stopped = self.recorders.stop_all(self.mill, "stopped: reset")
         self.mill.reset()
-        self._new_window()
+        self.loop.new_window()
         self._show_now()
         self._message("reset to t = 0" + (f"; recordings closed: {', '.join(map(str, stopped))}" if stopped else ""))
 
@@ -335,15 +263,16 @@ class MillApp(App):
             self.post_message(Notice(f"cannot record {kind}: {err}", error=True))
 
     def action_snapshot(self):
-        f = self.last_frame or self._frame(math.nan)
+        f = self.last_frame or self.loop.frame()
         p = self.mill.preset
         self.out_dir.mkdir(parents=True, exist_ok=True)
         path = self.out_dir / f"taimill-t{f.sim_time:.3f}s-{time.strftime('%Y%m%d-%H%M%S')}.png"
         title = (f"{p.source}: {p.jar.name} jar, {self.mill.n_balls} balls, {p.pair} μ_s {p.friction.mu_s:g} "
                  f"μ_d {p.friction.mu_d:g}, Ω = {self.mill.plate_rpm:g} rpm, K = {self.mill.ratio:.4g}")
+        history = {k: list(h) for k, h in self.loop.history.items()}
         self._save_png(path, dict(title=title, outline=p.jar.profile.outline, height=p.jar.height, position=f.position,
-                                  radius=self.mill.radius, psi=f.psi, history={k: list(h) for k, h in self.history.items()},
-                                  values=dict(self.last_values), time=f.sim_time))
+                                  radius=self.mill.radius, psi=f.psi, history=history, values=dict(self.last_values),
+                                  time=f.sim_time))
 
     @work(thread=True, group="files")
     def _save_png(self, path: Path, figure: dict):
@@ -361,7 +290,7 @@ class MillApp(App):
         self.recorders.stop_all(self.mill, "stopped: quit")
         self.workers.cancel_group(self, "simulation")
         for _ in range(200):  # the worker leaves after its current chunk (≈ 10 ms)
-            if self.sim_stopped.is_set():
+            if self.loop.stopped.is_set():
                 break
             await asyncio.sleep(0.01)
         self.exit()

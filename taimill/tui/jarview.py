@@ -60,7 +60,7 @@ class JarView(Widget):
     def _geometry(self, cols: int, rows: int):
         """Plane and wall dots for this size (cached: the outline has ~10⁴ points)."""
         if self._static is None or self._static[0] != (cols, rows):
-            x, y = self.outline[:, 0], self.outline[:, 1]
+            x = self.outline[:, 0]
             pad = 0.04 * np.ptp(x)
             if self.view == "top":
                 R = self.reach + pad

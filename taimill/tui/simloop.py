@@ -1,0 +1,102 @@
+"""The simulation side of the app, run by one Textual thread worker: advances the
+LiveMill in ≈ 10 ms kernel launches (NOTES.md: a kernel holds the GIL) and reports only
+through messages (`post`): a frame after every FRAME_PERIOD of running, the window
+readouts every READOUT_PERIOD. The UI thread talks to it through `paused` and `steps`
+and changes the mill through the LiveMill's locked setters.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections import deque
+
+from taimill.errors import SimulationUnstable
+from taimill.tui.history import SERIES
+from taimill.tui.messages import FrameReady, ReadoutsReady, SimFault
+from taimill.tui.window import WindowStats
+
+FRAME_PERIOD = 0.045  # wall s of simulation between frames: one advance() call (≈ 4 launches of
+# ≈ 10 ms, one drain), then a frame; measured 13-14 frames/s drawn (the issue asks ≥ 10)
+YIELD = 0.006  # wall s the worker sleeps after each frame: the GIL to the UI thread to draw it
+READOUT_PERIOD = 1.0  # wall s between window summaries (≈ 15 ms of NumPy, 60 with the regime)
+REGIME_EVERY = 3  # readouts per regime classification (the dearest figure)
+HISTORY = 120  # readouts kept for the sparklines (two minutes)
+
+
+class SimulationLoop:
+    """mill: a LiveMill built in the main thread; window: s of simulated time the
+    readouts cover."""
+
+    def __init__(self, mill, window: float, paused: bool = False):
+        self.mill, self.window_seconds = mill, window
+        self.paused = paused
+        self.steps: deque = deque()  # step requests from the UI (deque ops are atomic)
+        self.history = {k: deque(maxlen=HISTORY) for k in SERIES}
+        self.stopped = threading.Event()  #: set when run() has returned
+        self.window = None
+        self._regime: dict = {}
+        self.new_window()
+
+    def new_window(self):
+        """A fresh readout window (after a reset or rebuild: time starts over)."""
+        if self.window is not None:
+            self.mill.remove_sink(self.window)
+        self.window = WindowStats(self.window_seconds)
+        self.mill.add_sink(self.window)
+        for h in self.history.values():
+            h.clear()
+
+    def run(self, post, cancelled):
+        """The worker's body: post(message) is thread-safe, cancelled() ends the loop."""
+        self.stopped.clear()
+        mill = self.mill
+        last_readout, readouts = 0.0, 0
+        rate = deque(maxlen=40)  # (wall, sim) samples for the real-time factor
+        while not cancelled():
+            stepped = False
+            try:
+                if self.steps:
+                    self.steps.popleft()
+                    mill.advance(steps=mill.spec.frame_every)
+                    stepped = True
+                elif self.paused:
+                    rate.clear()
+                    time.sleep(0.02)
+                    continue
+                else:
+                    mill.advance(wall_budget=FRAME_PERIOD)
+            except SimulationUnstable as err:
+                self.paused = True
+                post(SimFault(str(err)))
+                continue
+            now = time.perf_counter()
+            rate.append((now, mill.time))
+            post(self.frame(realtime(rate)))
+            time.sleep(YIELD)
+            if stepped or now - last_readout >= READOUT_PERIOD:
+                last_readout, readouts = now, readouts + 1
+                post(self.readouts(regime=stepped or readouts % REGIME_EVERY == 0))
+        self.stopped.set()
+
+    def frame(self, realtime: float = math.nan) -> FrameReady:
+        s = self.mill.state()
+        return FrameReady(s["time"], s["position"], s["psi"], s["plate"], s["jar"], realtime)
+
+    def readouts(self, regime: bool = True) -> ReadoutsReady:
+        """The window figures; the regime, when not asked for, is the last one computed."""
+        values = self.window.result(regime) or {}
+        if regime:
+            self._regime = {k: v for k, v in values.items() if k.startswith("regime")}
+        values = self._regime | values
+        for k, h in self.history.items():
+            if math.isfinite(values.get(k, math.nan)):
+                h.append(values[k])
+        return ReadoutsReady(values, {k: list(h) for k, h in self.history.items()})
+
+
+def realtime(rate: deque) -> float:
+    """Simulated s per wall s over the (wall, sim) samples, nan under 0.2 s of them."""
+    (w0, t0), (w1, t1) = rate[0], rate[-1]
+    return (t1 - t0) / (w1 - w0) if w1 - w0 > 0.2 and t1 >= t0 else math.nan

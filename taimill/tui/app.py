@@ -213,7 +213,7 @@ class MillApp(App):
                     lambda: f"friction from t = {m.time:.3f} s: {m.friction.name}, μ_s = {m.friction.mu_s:g}, μ_d = {m.friction.mu_d:g}")
 
     def on_rebuild_requested(self, msg: RebuildRequested):
-        self._message("rebuilding the mill …")
+        self._message("rebuilding the mill … (more balls than the compiled kernels hold: ≈ 10 s to compile new ones)")
         self.call_after_refresh(self._rebuild, msg.jar, msg.balls)
 
     def _rebuild(self, jar, balls):

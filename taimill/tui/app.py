@@ -267,12 +267,12 @@ class MillApp(App):
         p = self.mill.preset
         self.out_dir.mkdir(parents=True, exist_ok=True)
         path = self.out_dir / f"taimill-t{f.sim_time:.3f}s-{time.strftime('%Y%m%d-%H%M%S')}.png"
-        title = (f"{p.source}: {p.jar.name} jar, {self.mill.n_balls} balls, {p.pair} μ_s {p.friction.mu_s:g} "
+        title = (f"{Path(p.source).name}: {p.jar.name} jar, {self.mill.n_balls} balls, {p.pair} μ_s {p.friction.mu_s:g} "
                  f"μ_d {p.friction.mu_d:g}, Ω = {self.mill.plate_rpm:g} rpm, K = {self.mill.ratio:.4g}")
         history = {k: list(h) for k, h in self.loop.history.items()}
         self._save_png(path, dict(title=title, outline=p.jar.profile.outline, height=p.jar.height, position=f.position,
                                   radius=self.mill.radius, psi=f.psi, history=history, values=dict(self.last_values),
-                                  time=f.sim_time))
+                                  time=f.sim_time, window=self.window_seconds))
 
     @work(thread=True, group="files")
     def _save_png(self, path: Path, figure: dict):

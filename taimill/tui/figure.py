@@ -16,8 +16,10 @@ MM = 1e3
 
 
 def save_png(path: Path, *, title: str, outline: np.ndarray, height: float, position: np.ndarray,
-             radius: np.ndarray, psi: float | None, history: dict, values: dict, time: float) -> Path:
-    """Write the figure; lengths in m, time in s. Returns path."""
+             radius: np.ndarray, psi: float | None, history: dict, values: dict, time: float,
+             window: float) -> Path:
+    """Write the figure; lengths in m, times in s; history: readout series with their
+    window ends `sim_seconds`. Returns path."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.patches import Circle
@@ -45,9 +47,8 @@ def save_png(path: Path, *, title: str, outline: np.ndarray, height: float, posi
     cells = [grid[0, 1], grid[0, 2], grid[1, 1], grid[1, 2]]
     for cell, (key, (label, unit, scale)) in zip(cells, SERIES.items()):
         ax = fig.add_subplot(cell)
-        data = [x * scale for x in history.get(key, [])]
-        ax.plot(np.arange(len(data)) - len(data) + 1, data, color="C0")
-        ax.set(title=f"{label} ({unit})", xlabel="readout (newest = 0)")
+        ax.plot(history.get("sim_seconds", []), np.asarray(history.get(key, []), float) * scale, ".-", color="C0")
+        ax.set(title=f"{label} ({unit}), window {window:g} s", xlabel="simulated time at the window's end (s)")
     text = fig.add_subplot(grid[2, 1:])
     text.axis("off")
     lines = [f"{label.strip():<22} {number(values.get(key), scale):>10} {unit}" for key, label, unit, scale in ROWS]

@@ -33,7 +33,7 @@ class SimulationLoop:
         self.mill, self.window_seconds = mill, window
         self.paused = paused
         self.steps: deque = deque()  # step requests from the UI (deque ops are atomic)
-        self.history = {k: deque(maxlen=HISTORY) for k in SERIES}
+        self.history = {k: deque(maxlen=HISTORY) for k in ("sim_seconds", *SERIES)}  # s, window ends
         self.stopped = threading.Event()  #: set when run() has returned
         self.window = None
         self._regime: dict = {}
@@ -90,9 +90,9 @@ class SimulationLoop:
         if regime:
             self._regime = {k: v for k, v in values.items() if k.startswith("regime")}
         values = self._regime | values
-        for k, h in self.history.items():
-            if math.isfinite(values.get(k, math.nan)):
-                h.append(values[k])
+        if "sim_seconds" in values:  # one point per readout in every series, on one time axis
+            for k, h in self.history.items():
+                h.append(values.get(k, math.nan))
         return ReadoutsReady(values, {k: list(h) for k, h in self.history.items()})
 
 

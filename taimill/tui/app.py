@@ -104,6 +104,7 @@ class MillApp(App):
         self._set_jar()
         self._show_now()
         self.set_interval(1.0, self._measure_fps)
+        self.loop.stopped.clear()  # here, not in the thread: on_unmount may come first
         self.simulate()
         self._import_recorders()
 
@@ -285,12 +286,13 @@ class MillApp(App):
     def action_leave_field(self):
         self.set_focus(None)
 
-    async def action_quit(self):
-        """Close recordings, stop the worker after its current chunk, leave."""
+    def action_quit(self):
+        """Close recordings properly, then leave (on_unmount stops the worker)."""
         self.recorders.stop_all(self.mill, "stopped: quit")
-        self.workers.cancel_group(self, "simulation")
-        for _ in range(200):  # the worker leaves after its current chunk (≈ 10 ms)
-            if self.loop.stopped.is_set():
-                break
-            await asyncio.sleep(0.01)
         self.exit()
+
+    async def on_unmount(self):
+        """However the app ends, the worker leaves the mill between two launches first
+        (a kernel must not run on while the interpreter shuts down)."""
+        self.workers.cancel_group(self, "simulation")
+        await asyncio.to_thread(self.loop.stopped.wait, 5.0)

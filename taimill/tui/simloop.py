@@ -34,7 +34,8 @@ class SimulationLoop:
         self.paused = paused
         self.steps: deque = deque()  # step requests from the UI (deque ops are atomic)
         self.history = {k: deque(maxlen=HISTORY) for k in ("sim_seconds", *SERIES)}  # s, window ends
-        self.stopped = threading.Event()  #: set when run() has returned
+        self.stopped = threading.Event()  #: clear while run() may be running
+        self.stopped.set()
         self.window = None
         self._regime: dict = {}
         self.new_window()
@@ -49,8 +50,14 @@ class SimulationLoop:
             h.clear()
 
     def run(self, post, cancelled):
-        """The worker's body: post(message) is thread-safe, cancelled() ends the loop."""
-        self.stopped.clear()
+        """The worker's body: post(message) is thread-safe, cancelled() ends the loop.
+        The caller clears `stopped` before starting the thread."""
+        try:
+            self._run(post, cancelled)
+        finally:
+            self.stopped.set()
+
+    def _run(self, post, cancelled):
         mill = self.mill
         last_readout, readouts = 0.0, 0
         rate = deque(maxlen=40)  # (wall, sim) samples for the real-time factor
@@ -78,7 +85,6 @@ class SimulationLoop:
             if stepped or now - last_readout >= READOUT_PERIOD:
                 last_readout, readouts = now, readouts + 1
                 post(self.readouts(regime=stepped or readouts % REGIME_EVERY == 0))
-        self.stopped.set()
 
     def frame(self, realtime: float = math.nan) -> FrameReady:
         s = self.mill.state()

@@ -106,8 +106,12 @@ class SweepStore:
         return out
 
     def done(self) -> set[int]:
-        """Finished points; re-indexes points whose group finished before their row."""
+        """Finished points; re-indexes points whose group finished before their row
+        (only when the store is open for writing: a reader of a sweep still being
+        written by another process just sees the rows committed so far)."""
         flags = self.root["table"]["done"][:]
+        if self.root.store.read_only:
+            return {int(i) for i in np.flatnonzero(flags)}
         finished = {int(i) for i in np.flatnonzero(flags)}
         points = self.root["points"]
         for i in range(len(self.plan)):

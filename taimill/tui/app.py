@@ -88,7 +88,7 @@ class MillApp(App):
         with Horizontal(id="main"):
             yield self.controls
             with Vertical(id="views"):
-                yield Static("jar frame, from above · red: away from plate axis", classes="caption")
+                yield Static("from above · red: away from plate axis", classes="caption")
                 yield self.top_view
                 yield Static("section x-z", classes="caption")
                 yield self.section_view

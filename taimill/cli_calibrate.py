@@ -13,19 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
+from taimill.cli import _plain  # JSON-safe values, one definition
+
 EXIT_NO_MATCH = 1
 MAX_H0_MM = 10_000.0
 
-
-def _plain(x):
-    """JSON-safe: numpy scalars to Python, non-finite floats to null, recursively."""
-    if isinstance(x, dict):
-        return {k: _plain(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    if hasattr(x, "item"):
-        x = x.item()
-    return None if isinstance(x, float) and not math.isfinite(x) else x
 
 
 def _emit(a, value, text, figure=None):

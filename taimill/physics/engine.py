@@ -174,6 +174,7 @@ class Engine:
 
     BALL_PAD = 8  # f64 × 8 = 64 B
     BUFFER_BYTES = 64 << 20
+    EVENT_ROWS = 1 << 14  # event buffer rows at least (×120 B)
 
     def __init__(self, batch, balls, *, mode="fused", use_grid=True, grid_cells=1, frame_capacity=256):
         if mode == "parallel" and batch != 1:
@@ -182,7 +183,9 @@ class Engine:
         n = -(-balls // self.BALL_PAD) * self.BALL_PAD
         # worst case: every open contact of every ball closes in one step
         self.margin = min(n * S.SLOTS, max(1 << 15, 2 * n))
-        events = 2 * self.margin
+        # room for a launch's events (Runner: 0.25 s at up to ≈ 50 000 events/s in a
+        # dozen-ball mill) so a launch rarely stops early for a full buffer
+        events = max(2 * self.margin, self.EVENT_ROWS)
         frames = int(max(4, min(frame_capacity, self.BUFFER_BYTES // (72 * n))))
         self.F = S.Fields(batch, n, events, frames, grid_cells)
 

@@ -105,3 +105,40 @@ def test_closed_form_damping_overshoots_restitution_with_the_clamp():
     c0 = laws_np.closed_form_damping(4, 0.516, bw.k, bw.n, bw.m_eff, bw.u_ref)
     got = laws_np.simulate_impact(4, bw.k, bw.n, c0, bw.d, bw.m_eff, 3.309)["e"][0]
     assert 0.54 < got < 0.58
+
+
+def test_auto_dt_resolves_the_shortest_contact_below_the_top_speed():
+    # The damped Adams steel contact is shortest near 6 m/s, not at the top speed (12 m/s
+    # here, 400 rpm-like): the time step must give STEPS_PER_CONTACT steps to the shortest
+    # contact at any speed up to v_max. Durations from a fine speed scan (RK4, 400 steps
+    # per contact: ≤ 0.1 % error); tolerance 0.5 %: the rule scans speeds in √2 steps and
+    # the minimum is flat.
+    _, _, bb, bw, _ = pair_contact("steel-steel")
+    speeds = np.linspace(0.5, 12.0, 47)
+    shortest = min(float(np.min(laws_np.simulate_impact(c.law_id, c.k, c.n, c.c, c.d, c.m_eff, speeds, steps=400)["duration"]))
+                   for c in (bb, bw))
+    top = min(float(laws_np.simulate_impact(c.law_id, c.k, c.n, c.c, c.d, c.m_eff, 12.0, steps=400)["duration"][0]) for c in (bb, bw))
+    assert top > 1.05 * shortest  # the case the rule must handle
+    dt = laws_np.auto_dt((bb, bw), 12.0)
+    assert dt * laws_np.STEPS_PER_CONTACT <= shortest * 1.005
+    assert dt * laws_np.STEPS_PER_CONTACT == pytest.approx(shortest, rel=0.005)
+
+
+def test_auto_dt_keeps_explicit_damping_stable():
+    # A damper c_eff on m_eff advanced explicitly is stable only for c_eff·dt/m_eff < 2;
+    # auto_dt keeps it ≤ RUN_DAMPING_LIMIT = 1. The thesis' steel contact, 50× damped,
+    # would get c_eff·dt/m_eff ≈ 3.2 from the contact-time rule alone.
+    from types import SimpleNamespace
+
+    _, _, bb, _, _ = pair_contact("steel-steel")
+    heavy = SimpleNamespace(law_id=bb.law_id, k=bb.k, n=bb.n, c=50 * bb.c, d=bb.d, m_eff=bb.m_eff)
+    v = 6.0
+    speeds = v * laws_np.DT_SPEED_FRACTIONS
+    r = laws_np.simulate_impact(heavy.law_id, heavy.k, heavy.n, heavy.c, heavy.d, heavy.m_eff, speeds, steps=400)
+    c_eff = heavy.c * np.max(laws_np.damping_shape(heavy.law_id, r["peak_penetration"], heavy.k, heavy.n, heavy.d, heavy.m_eff))
+    assert np.min(r["duration"]) / laws_np.STEPS_PER_CONTACT * c_eff / heavy.m_eff > 2  # unstable without the bound
+    dt = laws_np.auto_dt((heavy,), v)
+    assert dt * c_eff / heavy.m_eff == pytest.approx(laws_np.RUN_DAMPING_LIMIT, rel=1e-9)
+    # the thesis' own contact is far from the bound: the contact time sets its step
+    t_c, dt_bb = laws_np.contact_dt(bb.law_id, bb.k, bb.n, bb.c, bb.d, bb.m_eff, speeds)
+    assert dt_bb == t_c / laws_np.STEPS_PER_CONTACT

@@ -69,13 +69,11 @@ def contact_time(law: NormalLaw, speed: float) -> float:
 
 def resolved_dt(law: NormalLaw, speed: float, steps: int = laws_np.STEPS_PER_CONTACT) -> tuple[float, float]:
     """(contact time, time step) of a head-on impact at `speed` (m/s): the contact time
-    over `steps` (laws_np.auto_dt), and at most 0.5 m_eff/c_eff with c_eff = c·g(u_peak)
-    the damping at peak overlap — explicit damping is stable below 2 and accurate below
-    ~0.5. Only heavily damped variants (a ±50 % sensitivity, a fit's range) meet it."""
-    r = laws_np.simulate_impact(law.law_id, law.k, law.n, law.c, law.d, law.m_eff, speed, steps=400)
-    t_c, u = float(r["duration"][0]), r["peak_penetration"]
-    c_eff = law.c * float(laws_np.damping_shape(law.law_id, u, law.k, law.n, law.d, law.m_eff)[0])
-    return t_c, min(t_c / steps, 0.5 * law.m_eff / c_eff) if c_eff > 0 else t_c / steps
+    over `steps` (laws_np.contact_dt, the rule of runs), and at most 0.5 m_eff/c_eff —
+    explicit damping is stable below 2 and accurate below ~0.5, and a fit must resolve
+    the restitution it reads. Only heavily damped variants (a ±50 % sensitivity, a
+    fit's range) meet the bound."""
+    return laws_np.contact_dt(law.law_id, law.k, law.n, law.c, law.d, law.m_eff, [speed], steps, damping_limit=0.5)
 
 
 # ------------------------------------------------------------------ drop tests

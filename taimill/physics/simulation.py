@@ -29,7 +29,7 @@ _initialised = False
 PARALLEL_ABOVE = 50_000
 # simulated seconds per fused launch (≥ 10⁴ steps). Each launch is followed by a drain
 # into the sinks, whose NumPy work has a fixed cost per call (≈ 4 ms with the summary
-# sink): at 0.05 s that was 17 % of a 12-ball run, at 0.25 s it is ≈ 4 % (scripts/bench.py).
+# sink): at 0.05 s that was 17 % of a 12-ball run, at 0.25 s it is ≈ 7 % (cProfile of run()).
 LAUNCH_SECONDS = 0.25
 FRAME_CAPACITY = 256  # frames buffered per mill between drains (fewer for huge mills)
 _engines: dict = {}

@@ -55,35 +55,38 @@ def test_speed_change_ramps_from_the_current_state(mill):
 def test_new_time_step_keeps_time_continuous(mill):
     sink = MemorySink()
     mill.add_sink(sink)
-    mill.advance(steps=60_000)
-    t, dt0 = mill.time, mill.dt
-    mill.set_speeds(plate_rpm=400, ratio=-3.5)
-    # the preset's rule (params.load_preset) at the new top speeds: the Adams law's
-    # contact is shortest near 6 m/s, so at 11.6 m/s the step grows by 8 %
-    want = auto_dt(mill.preset, 400 * RPM, -1400 * RPM)
-    # rounded down to t/n, n = ⌈t/dt⌉: within dt/t (< 1e-4 at t = 0.08 s)
+    mill.advance(steps=60_000)  # mid start-up ramp (0.08 s of 0.2 s)
+    dt0 = mill.dt
+    # slowing down keeps the step of the speeds the ramp passes through …
+    mill.set_speeds(plate_rpm=30, ratio=-1.0)
+    assert mill.dt == pytest.approx(dt0, rel=1e-4)  # rounded to t/n
+    # … and a change once the slow speeds are reached takes the step of its own top
+    # speeds (params.load_preset's rule): at 40 rpm the shortest contact is at the top
+    # speed, 2.3 m/s, 5.6 % longer than the preset's (its minimum near 6 m/s)
+    mill.advance(steps=int(0.25 / mill.dt))
+    t = mill.time
+    mill.set_speeds(plate_rpm=40, ratio=-1.0)
+    want = auto_dt(mill.preset, 40 * RPM, -40 * RPM)
+    # rounded down to t/n, n = ⌈t/dt⌉: within dt/t (< 1e-4 at t = 0.33 s)
     assert want * (1 - 1e-4) < mill.dt <= want
-    assert abs(mill.dt / dt0 - 1) > 0.05
+    assert mill.dt / dt0 - 1 > 0.05
     assert mill.time == pytest.approx(t, rel=1e-12, abs=0)
     mill.advance(steps=60_000)
     times = sink.frame_table["time"]
-    # frames stay on the 100 Hz grid on either side of the switch, to within 1e-4 s (a
+    # frames stay on the 100 Hz grid on either side of the switches, to within 1e-4 s (a
     # frame interval is a whole number of steps: half a step of rounding per frame); a
-    # time base that jumped with dt would move them by 8 % of t = 6 ms
+    # time base that jumped with dt would move them by 5.6 % of t = 20 ms
     assert np.all(np.diff(times) > 0) and len(times) == int(mill.time / 0.01) + 1
     assert np.abs(times - np.round(times / 0.01) * 0.01).max() < 1e-4
     events = sink.event_table
     assert events["t_start"].min() >= 0 and events["t_start"].max() <= mill.time
-    # slowing down keeps the step of the speeds the ramp passes through …
-    fast_dt = mill.dt
-    mill.set_speeds(plate_rpm=100, ratio=-1.0)
-    assert mill.dt == pytest.approx(fast_dt, rel=1e-4)  # both rounded to t/n
-    # … and a later change from the slow speeds takes theirs, still continuous
-    mill.advance(steps=int(0.25 / mill.dt))
+    # speeding up to 400 rpm: the step of the shortest contact at any speed up to the
+    # new top speed (11.6 m/s), i.e. back to about the preset's, still continuous
     t = mill.time
-    mill.set_speeds(plate_rpm=100, ratio=-1.0)
-    want = auto_dt(mill.preset, 100 * RPM, -100 * RPM)
+    mill.set_speeds(plate_rpm=400, ratio=-3.5)
+    want = auto_dt(mill.preset, 400 * RPM, -1400 * RPM)
     assert want * (1 - 1e-4) < mill.dt <= want and mill.time == pytest.approx(t, rel=1e-12)
+    assert mill.dt == pytest.approx(dt0, rel=0.01)
 
 
 def test_friction_change_reaches_the_kernel(mill):

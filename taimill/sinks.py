@@ -136,6 +136,29 @@ class MemorySink:
         return self._cat(self._energy, ENERGY_COLUMNS)
 
 
+class Relay:
+    """Passes the stream to `self.sink` unchanged; a wrapper overrides only the calls it
+    changes."""
+
+    def __init__(self, sink: Sink):
+        self.sink = sink
+
+    def start(self, config, n_balls, radii):
+        self.sink.start(config, n_balls, radii)
+
+    def frames(self, block):
+        self.sink.frames(block)
+
+    def events(self, block):
+        self.sink.events(block)
+
+    def energy(self, block):
+        self.sink.energy(block)
+
+    def finish(self, summary, status):
+        self.sink.finish(summary, status)
+
+
 class FanOut:
     """Sends the stream to several sinks."""
 

@@ -119,7 +119,6 @@ def simulate_impact(law, k, n, c, d, m_eff, v0, steps=2000):
     arrays (one impact per broadcast pair, each with its own step). Returns dict of
     arrays: e, duration (s), peak_force (N), peak_penetration (m)."""
     c, v0 = np.broadcast_arrays(np.atleast_1d(np.asarray(c, dtype=float)), np.asarray(v0, dtype=float))
-    c, v0 = c.copy(), v0.copy()
     h = 1.5 * _elastic_contact_time(k, n, m_eff, v0) / steps
     u = np.zeros_like(c)
     w = v0.copy()

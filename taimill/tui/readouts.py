@@ -9,18 +9,21 @@ import math
 import numpy as np
 from textual.widgets import Static
 
+from taimill.cli import SUMMARY_ROWS
 from taimill.params import RPM
 
-# (summary key, label, unit, scale)
-ROWS = (
-    ("impact_power", "impact power", "W", 1),
-    ("impact_power_normal", "  normal", "W", 1),
-    ("impact_power_tangential", "  tangential", "W", 1),
-    ("mean_se", "mean SE", "mJ", 1e3),
-    ("collision_rate", "collision rate", "1/s", 1),
-    ("dissipated_power", "dissipated power", "W", 1),
-    ("energy_balance_error", "energy balance err", "%", 100),
-)
+# (summary key, label, unit, scale): the run summary's figures that fit the panel, with
+# short labels; units and scales are those `taimill run` prints (cli.SUMMARY_ROWS)
+_UNITS = {key: (unit, scale) for key, _, unit, scale in SUMMARY_ROWS}
+ROWS = tuple((key, label, *_UNITS[key]) for key, label in (
+    ("impact_power", "impact power"),
+    ("impact_power_normal", "  normal"),
+    ("impact_power_tangential", "  tangential"),
+    ("mean_se", "mean SE"),
+    ("collision_rate", "collision rate"),
+    ("dissipated_power", "dissipated power"),
+    ("energy_balance_error", "energy balance err"),
+))
 
 
 def number(value, scale=1.0) -> str:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from taimill.sinks import FanOut
+from taimill.sinks import FanOut, Relay
 from taimill.summary import SummarySink
 from taimill.tui.window import Rebased
 
@@ -46,16 +46,13 @@ def file_sink(kind: str, path: Path):
     return ZarrSink(path)
 
 
-class Batched:
+class Batched(Relay):
     """Buffers the stream for `sink` and passes it on in blocks of ~BATCH_SECONDS."""
 
     def __init__(self, sink):
-        self.sink = sink
+        super().__init__(sink)
         self.pending = {"frames": [], "events": [], "energy": []}
         self.t_flush = None
-
-    def start(self, config, n_balls, radii):
-        self.sink.start(config, n_balls, radii)
 
     def frames(self, block):
         self._add("frames", block, block["time"][-1])
@@ -85,9 +82,12 @@ class Batched:
         self.sink.finish(summary, status)
 
 
-class RecordingSummary:
+class RecordingSummary(Relay):
     """Sink: the SPEC §9 summary of what a recording receives, from its start time on
     (the config's `live_start_time`), energy counted from its first row."""
+
+    def __init__(self):
+        super().__init__(None)  # built at start, from the config's start time
 
     def start(self, config, n_balls, radii):
         self.t_start = float(config["live_start_time"])
@@ -95,17 +95,8 @@ class RecordingSummary:
         self.sink = Batched(Rebased(self.summary))
         self.sink.start(config, n_balls, radii)
 
-    def frames(self, block):
-        self.sink.frames(block)
-
-    def events(self, block):
-        self.sink.events(block)
-
-    def energy(self, block):
-        self.sink.energy(block)
-
     def finish(self, summary, status):
-        pass
+        pass  # the recording's summary comes from result(), with the live changes
 
     def result(self, t_end: float, wall: float) -> dict:
         self.sink.flush()

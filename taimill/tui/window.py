@@ -18,6 +18,7 @@ from taimill.analysis.events import EventStats
 from taimill.analysis.regime import RegimeFeatures
 from taimill.analysis.rungeometry import RunGeometry
 from taimill.analysis.theory import critical_ratio
+from taimill.sinks import Relay
 from taimill.summary import EnergyLedger
 
 CUMULATIVE = ("drive_work", "dissipated")
@@ -28,29 +29,18 @@ def rebased(block: dict, origin: dict) -> dict:
     return block | {k: block[k] - origin[k] for k in CUMULATIVE}
 
 
-class Rebased:
+class Rebased(Relay):
     """Passes the stream to `sink` with drive work and dissipation counted from the
     first energy row it sees."""
 
     def __init__(self, sink):
-        self.sink, self.origin = sink, None
-
-    def start(self, config, n_balls, radii):
-        self.sink.start(config, n_balls, radii)
-
-    def frames(self, block):
-        self.sink.frames(block)
-
-    def events(self, block):
-        self.sink.events(block)
+        super().__init__(sink)
+        self.origin = None
 
     def energy(self, block):
         if self.origin is None:
             self.origin = {k: float(block[k][0]) for k in CUMULATIVE}
         self.sink.energy(rebased(block, self.origin))
-
-    def finish(self, summary, status):
-        self.sink.finish(summary, status)
 
 
 class WindowStats:

@@ -38,13 +38,19 @@ SUMMARY_ROWS = (
 )
 
 
+def dt_option(text: str | None):
+    """--dt as given: None, "auto" or seconds; any other text is passed on for
+    load_preset to reject with the allowed range."""
+    if text is None or text == "auto":
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
 def _overrides(a) -> dict:
-    dt = a.dt
-    if dt is not None and dt != "auto":
-        try:
-            dt = float(dt)
-        except ValueError:
-            dt = a.dt
+    dt = dt_option(a.dt)
     return {
         "ratio": a.ratio, "jar_rpm": a.jar_rpm, "plate_rpm": a.plate_rpm, "pair": a.pair,
         "jar": a.jar, "balls.count": a.balls, "seed": a.seed, "duration": a.duration, "dt": dt,

@@ -56,6 +56,7 @@ def register(subparsers) -> None:
 
 def request(a):
     """Validated sweep.Request from the parsed arguments."""
+    from taimill.cli import dt_option
     from taimill.sweep import Request, parse_values
 
     axes = {}
@@ -64,14 +65,8 @@ def request(a):
         text = getattr(a, key.replace(".count", "").replace("-", "_"))
         if text is not None:
             axes[key] = parse_values(text, opt, kind)
-    dt = a.dt
-    if dt is not None and dt != "auto":
-        try:
-            dt = float(dt)
-        except ValueError:
-            pass
     overrides = {k: v for k, v in {"seed": a.seed, "duration": a.duration, "analysis_start": a.analysis_start,
-                                    "dt": dt, "law": a.law}.items() if v is not None}
+                                    "dt": dt_option(a.dt), "law": a.law}.items() if v is not None}
     if a.scheduler and a.workers is not None:
         raise ConfigError("command line", "--workers", a.workers, "not used with --scheduler (the cluster's workers run the chunks)")
     if a.workers is not None and not 1 <= a.workers <= 256:

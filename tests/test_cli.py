@@ -135,6 +135,19 @@ def test_bad_command_line_override_is_named_as_such():
     assert res.stderr.startswith("taimill: error: command line: ratio = -40.0")
 
 
+@pytest.mark.parametrize("command", ["run", "sweep"])
+@pytest.mark.parametrize("dt", ["fast", "1e-3"])
+def test_bad_dt_on_the_command_line_names_value_and_range(command, dt):
+    # run and sweep parse --dt alike (cli.dt_option): a number is range-checked by
+    # load_preset, any other text is refused with the allowed values
+    extra = ["--ratio", "-2"] if command == "sweep" else []
+    res = taimill(command, "presets/p4-cy-steel.toml", *extra, "--dt", dt)
+    assert res.returncode == 2
+    shown = "'fast'" if dt == "fast" else "0.001"
+    assert res.stderr.startswith(f"taimill: error: command line: dt = {shown}")
+    assert "'auto' or a time step in (0," in res.stderr
+
+
 def test_existing_output_is_not_overwritten(tmp_path):
     out = tmp_path / "keep.zarr"
     out.mkdir()

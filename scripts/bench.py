@@ -45,7 +45,7 @@ tick-sampled: ±0.2 for bursty or short measurements). With others near 1 on a
    one thread, and two such processes at once (B = 2), as µs per mill-step (this
    chose B and the process count); then the 21-point K sweep of SPEC §10 (K = 0 ... -4,
    CY steel, Ω = 200 rpm, 24 s per point; 3 s with --quick, the 24 s wall time then
-   extrapolated linearly) through the public path `taimill.sweep.run_sweep` on one
+   extrapolated linearly) through the public path `taimill.runs.sweep.run_sweep` on one
    spawned process per core, no store. Timed from the call to the last result: worker start-up, ti.init
    and compilation included (what a user waits for); CPU time includes the workers.
 
@@ -94,7 +94,7 @@ def start_taichi(threads: int | None) -> int:
     """ti.init through taimill; returns the number of CPU threads Taichi may use."""
     import taichi as ti
 
-    from taimill.physics.simulation import init_taichi
+    from taimill.physics.runner import init_taichi
 
     init_taichi(threads)
     return ti.lang.impl.current_cfg().cpu_max_num_threads
@@ -120,10 +120,11 @@ def peak_rss_mib() -> float:
 
 def work_reference(task: dict) -> dict:
     """The reference preset (`copies` mills), timed after a short compiling run."""
-    from taimill.params import load_preset
-    from taimill.physics.mill import from_preset
-    from taimill.physics.simulation import Runner, run
-    from taimill.sinks import NullSink
+    from taimill.model.params import load_preset
+    from taimill.model.spec import from_preset
+    from taimill.physics.runner import Runner
+    from taimill.runs.simulation import run
+    from taimill.store.sinks import NullSink
 
     threads = start_taichi(task["threads"])
     preset = load_preset(PRESET)
@@ -150,7 +151,7 @@ def advance(engine, steps: int, chunk: int | None = None, budget: float = math.i
     `budget` wall seconds have passed. Returns ([wall, cpu, busy] s, steps done)."""
     from taimill.errors import SimulationUnstable
     from taimill.physics import state as S
-    from taimill.physics.simulation import status_message
+    from taimill.physics.runner import status_message
 
     F = engine.F
     start, done = int(F.step[0]), 0
@@ -192,9 +193,9 @@ def launch_steps(engine) -> int:
 def work_scaling(task: dict) -> dict:
     """Cost per step of one mill of N balls: windows of steps from a fresh placement
     (or from a settled bed) until task["seconds"] of wall time are timed."""
-    from taimill.params import load_preset
-    from taimill.physics.mill import from_preset
-    from taimill.physics.simulation import Runner
+    from taimill.model.params import load_preset
+    from taimill.model.spec import from_preset
+    from taimill.physics.runner import Runner
 
     threads = start_taichi(task["threads"])
     overrides = {"jar": task["jar"], "balls.count": task["n"]} if task["jar"] else None
@@ -229,11 +230,11 @@ def work_recording(task: dict) -> dict:
     first-use costs: lazy imports — rerun's first Points3D imports pandas, ≈ 0.7 s —
     colour tables, codecs; reported as `warm_wall`). The timed run includes the sink's
     finish (flushing its file)."""
-    from taimill.params import load_preset
-    from taimill.physics.simulation import run
-    from taimill.recording import RerunSink
-    from taimill.sinks import NullSink
-    from taimill.store import ZarrSink
+    from taimill.model.params import load_preset
+    from taimill.runs.simulation import run
+    from taimill.recording.sink import RerunSink
+    from taimill.store.sinks import NullSink
+    from taimill.store.run import ZarrSink
 
     threads = start_taichi(task["threads"])
     preset = load_preset(PRESET)
@@ -259,7 +260,7 @@ def work_sweep(task: dict) -> dict:
     """The K sweep through run_sweep on `workers` spawned processes (no store)."""
     import resource
 
-    from taimill.sweep import Request, parse_values, run_sweep
+    from taimill.runs.sweep import Request, parse_values, run_sweep
 
     req = Request(str(PRESET), {"duration": task["duration"]}, {"ratio": parse_values(SWEEP_RATIOS, "--ratio")})
 
@@ -279,9 +280,9 @@ def work_sweep(task: dict) -> dict:
 def work_batch(task: dict) -> dict:
     """B copies of the reference mill as one sweep chunk (one Runner, one thread), timed
     after a short compiling chunk of the same B."""
-    from taimill.params import load_preset
-    from taimill.physics.simulation import init_taichi
-    from taimill.sweepexec import Job, run_chunk
+    from taimill.model.params import load_preset
+    from taimill.physics.runner import init_taichi
+    from taimill.runs.executors import Job, run_chunk
 
     init_taichi(threads=1)
     B = task["batch"]

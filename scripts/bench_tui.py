@@ -29,8 +29,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def in_process(preset: Path, seconds: float) -> dict:
-    from taimill.params import load_preset
-    from taimill.physics.live import LiveMill
+    from taimill.model.params import load_preset
+    from taimill.runs.live import LiveMill
     from taimill.tui.app import MillApp
 
     mill = LiveMill(load_preset(preset))

@@ -41,10 +41,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from taimill.params import load_jar  # noqa: E402
-from taimill.sweep import Request, parse_values, run_sweep  # noqa: E402
-from taimill.sweepstats import group_mean, parabolic_peak  # noqa: E402
-from taimill.sweepstore import SweepStore, open_sweep  # noqa: E402
+from taimill.model.params import load_jar  # noqa: E402
+from taimill.runs.sweep import Request, parse_values, run_sweep  # noqa: E402
+from taimill.analysis.sweep import group_mean, parabolic_peak  # noqa: E402
+from taimill.store.sweep import SweepStore, open_sweep  # noqa: E402
 
 # name -> (preset, K range (A, B) as in the thesis, extra swept axes)
 SWEEPS = {
@@ -320,7 +320,7 @@ CLAIMS = {
 
 # ---------------------------------------------------------------- output
 def figures(stores, out_dir: Path) -> list[Path]:
-    from taimill.sweepreport import report_sweep
+    from taimill.figures.sweep import report_sweep
 
     paths = []
     for name, path in stores.items():
@@ -341,7 +341,7 @@ def write_markdown(path: Path, rows, args, wall, figs, sampled_rows=None):
     lines += [f"- runs: {args.duration or 24:g} s simulated per point, analysis window from {start:g} s; {grid}; one seed per point",
               f"- estimator: {args.estimator}" + (f", events below {args.min_un:g} mm/s left out" if args.min_un else ""),
               f"- wall time {wall / 60:.1f} min; written {time.strftime('%Y-%m-%d %H:%M')}",
-              f"- peak location: parabola through the best grid point and its neighbours (taimill.sweepstats); "
+              f"- peak location: parabola through the best grid point and its neighbours (taimill.analysis.sweep); "
               f"K tolerance {PEAK_TOL:g} = two steps of the thesis' 0.2 grid", "",
               "| claim | thesis | taimill | agrees |", "|---|---|---|---|"]
     lines += [f"| {r['claim']} | {r['thesis']} | {r['ours']} | {r['agrees']} |" for r in rows]

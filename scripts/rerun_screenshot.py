@@ -21,8 +21,8 @@ from pathlib import Path
 
 import rerun.blueprint as rrb
 
-from taimill import recording_scene as scene
-from taimill.cli_record import viewer_binary
+from taimill.recording import scene
+from taimill.cli.record import viewer_binary
 
 DISPLAY = ":97"
 

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from taimill.params import NormalLaw, pair_contact
-from taimill.physics import laws_np
-from taimill.physics import calibration
-from taimill.physics.calibration import run_spec, two_sphere_spec
+from taimill.model.params import NormalLaw, pair_contact
+from taimill.model import laws as laws_np
+from taimill.calibration import runs as calibration
+from taimill.calibration.runs import run_spec, two_sphere_spec
 
 FRICTIONLESS = calibration.FRICTIONLESS
 
@@ -28,6 +28,6 @@ def dt_for(law: NormalLaw, v: float, steps_per_contact: int) -> float:
 def two_ball_impact(bb: NormalLaw, friction, v_rel, offset, *, dt):
     """Two 6 mm steel balls: ball 0 at rest, ball 1 approaching along -x at v_rel (m/s)
     with its centre `offset` (m) off the line in y; no gravity. Returns (final state,
-    events). The geometry is `taimill.physics.calibration.two_sphere_spec`."""
+    events). The geometry is `taimill.calibration.runs.two_sphere_spec`."""
     ball, jar, _, bw, _ = steel()
     return run_spec(two_sphere_spec(ball, jar, bb, bw, friction, v_rel, offset, dt=dt))

@@ -13,8 +13,8 @@ from taimill.analysis.sampled import SampledStats
 from taimill.analysis.spatial import RadialDensity, WallMap, contact_map
 from taimill.analysis.theory import critical_ratio, single_ball_hit
 from taimill.errors import ConfigError
-from taimill.params import load_preset
-from taimill.sinks import EVENT_COLUMNS
+from taimill.model.params import load_preset
+from taimill.schema import EVENT_COLUMNS
 
 R_BALL = 0.006
 

@@ -22,11 +22,11 @@ from taimill.calibration.impacts import oblique
 from taimill.calibration.optimise import brent
 from taimill.cli import main
 from taimill.errors import ConfigError
-from taimill.params import load_preset, pair_contact
-from taimill.physics import laws_np
-from taimill.physics.calibration import drop_test, drop_tests
-from taimill.physics.simulation import run
-from taimill.store import ZarrSink, open_run
+from taimill.model.params import load_preset, pair_contact
+from taimill.model import laws as laws_np
+from taimill.calibration.runs import drop_test, drop_tests
+from taimill.runs.simulation import run
+from taimill.store.run import ZarrSink, open_run
 
 ROOT = Path(__file__).resolve().parent.parent
 OFFSETS_MM = list(range(13))  # thesis Fig 2.8: Δ = 0 … 12 mm (12 = 2r, grazing)

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from taimill.store import open_run
+from taimill.store.run import open_run
 
 ROOT = Path(__file__).resolve().parent.parent
 SPEC_KEYS = (

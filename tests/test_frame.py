@@ -4,13 +4,13 @@ import numpy as np
 import pytest
 
 from helpers import FRICTIONLESS, elastic, steel
-from taimill.geometry import build_profile
-from taimill.params import Friction, load_preset
-from taimill.physics.calibration import impact_spec
-from taimill.physics.frame_np import Ramp
-from taimill.physics.mill import from_preset
-from taimill.physics.simulation import Runner
-from taimill.sinks import MemorySink
+from taimill.model.geometry import build_profile
+from taimill.model.params import Friction, load_preset
+from taimill.calibration.runs import impact_spec
+from taimill.model.frame import Ramp
+from taimill.model.spec import from_preset
+from taimill.physics.runner import Runner
+from taimill.store.sinks import MemorySink
 
 G = 9.81
 

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from helpers import FRICTIONLESS, dt_for, elastic, steel, two_ball_impact
-from taimill.params import Friction, NormalLaw, pair_contact
-from taimill.physics import laws_np
-from taimill.physics.calibration import drop_test, impact_spec, run_spec
+from taimill.model.params import Friction, NormalLaw, pair_contact
+from taimill.model import laws as laws_np
+from taimill.calibration.runs import drop_test, impact_spec, run_spec
 
 G = 9.81
 

@@ -7,13 +7,13 @@ import pytest
 import taichi as ti
 from matplotlib.path import Path as PolyPath
 
-from taimill.geometry import profile_sdf
-from taimill.params import Friction, jar_names, load_jar, load_preset
+from taimill.model.geometry import profile_sdf
+from taimill.model.params import Friction, jar_names, load_jar, load_preset
 from taimill.physics import walls
-from taimill.physics.frame_np import Ramp
-from taimill.physics.mill import from_preset
-from taimill.physics.simulation import Runner
-from taimill.sinks import MemorySink
+from taimill.model.frame import Ramp
+from taimill.model.spec import from_preset
+from taimill.physics.runner import Runner
+from taimill.store.sinks import MemorySink
 
 FRICTIONLESS = Friction("frictionless", 0.0, 0.0, 1e-3, 1e-2)
 TABLE_4_1 = {"CY": 72, "HM": 60, "1L": 71, "3L": 69, "T": 51}  # ml

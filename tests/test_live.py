@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from taimill.errors import ConfigError
-from taimill.params import RPM, ROOT, load_preset
-from taimill.physics.live import LiveMill, auto_dt
-from taimill.sinks import MemorySink
+from taimill.model.params import RPM, ROOT, load_preset
+from taimill.runs.live import LiveMill, auto_dt
+from taimill.store.sinks import MemorySink
 
 P4 = ROOT / "presets" / "p4-cy-steel.toml"
 

@@ -3,10 +3,11 @@
 import numpy as np
 import pytest
 
-from taimill.params import load_preset
-from taimill.physics.mill import from_preset, skin_for
-from taimill.physics.simulation import Runner
-from taimill.sinks import MemorySink
+from taimill.model.params import load_preset
+from taimill.model.spec import from_preset
+from taimill.model.spec import skin_for
+from taimill.physics.runner import Runner
+from taimill.store.sinks import MemorySink
 
 
 def _packing(n, seed, jar_radius=0.05, height=0.05, r=0.006):

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 import rerun as rr
 
-from taimill import recording_scene as scene
-from taimill.recording import RerunSink
-from taimill.recording_stats import hist_edges, onset_histogram, window_sums
-from taimill.store import open_run
+from taimill.recording import scene
+from taimill.recording.sink import RerunSink
+from taimill.recording.stats import hist_edges, onset_histogram, window_sums
+from taimill.store.run import open_run
 
 ROOT = Path(__file__).resolve().parent.parent
 PRESET = ROOT / "presets" / "p4-cy-steel.toml"

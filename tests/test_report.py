@@ -13,11 +13,11 @@ import pytest
 import zarr
 from PIL import Image
 
-from taimill.analysis.report import FIGURES
+from taimill.figures.report import FIGURES
 from taimill.analysis.run import analyse
-from taimill.params import ROOT, load_preset
-from taimill.physics.simulation import run
-from taimill.store import committed_rows
+from taimill.model.params import ROOT, load_preset
+from taimill.runs.simulation import run
+from taimill.store.run import committed_rows
 
 CY = str(ROOT / "presets/p4-cy-steel.toml")
 EXPECTED = {-0.6: "cascading", -2.2: "cataracting", -3.8: "rolling"}

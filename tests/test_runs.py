@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from taimill.errors import SimulationUnstable
-from taimill.params import load_preset
-from taimill.physics.simulation import run
-from taimill.sinks import FanOut, MemorySink
-from taimill.store import ZarrSink, open_run
+from taimill.model.params import load_preset
+from taimill.runs.simulation import run
+from taimill.store.sinks import FanOut, MemorySink
+from taimill.store.run import ZarrSink, open_run
 
 PRESETS = sorted(Path(__file__).resolve().parent.parent.glob("presets/*.toml"))
 

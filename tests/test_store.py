@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 import zarr
 
-from taimill.sinks import ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_FIELDS
-from taimill.store import ZarrSink, open_run, trim_to_valid
+from taimill.schema import ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_FIELDS
+from taimill.store.run import ZarrSink, open_run, trim_to_valid
 
 N_BALLS = 3
 REPO = Path(__file__).resolve().parents[1]
@@ -134,8 +134,8 @@ def test_small_blocks_buffered_until_chunk_full(tmp_path):
 WRITER = textwrap.dedent(
     """
     import numpy as np
-    from taimill.sinks import ENERGY_COLUMNS, EVENT_COLUMNS
-    from taimill.store import ZarrSink
+    from taimill.schema import ENERGY_COLUMNS, EVENT_COLUMNS
+    from taimill.store.run import ZarrSink
 
     def rows(k0, n, dtype):
         k = np.arange(k0, k0 + n)

@@ -16,12 +16,12 @@ import pytest
 
 from taimill import cli
 from taimill.errors import ConfigError
-from taimill.store import ZarrSink, open_run
-from taimill.sweep import auto_batch, chunks, parse_values, refine
-from taimill.sweepexec import Job, PointResult
-from taimill.sweepreport import band, read_overlay, report_sweep
-from taimill.sweepstats import mean_band, parabolic_peak, t_quantile
-from taimill.sweepstore import SweepStore, is_sweep, open_sweep
+from taimill.store.run import ZarrSink, open_run
+from taimill.runs.sweep import auto_batch, chunks, parse_values, refine
+from taimill.runs.executors import Job, PointResult
+from taimill.figures.sweep import band, read_overlay, report_sweep
+from taimill.analysis.sweep import mean_band, parabolic_peak, t_quantile
+from taimill.store.sweep import SweepStore, is_sweep, open_sweep
 
 ROOT = Path(__file__).resolve().parent.parent
 PRESET = "presets/p4-cy-steel.toml"

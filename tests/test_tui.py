@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 import rerun as rr
 
-from taimill import recording_scene as scene
-from taimill.params import RPM, ROOT, load_preset
-from taimill.physics.live import LiveMill
-from taimill.store import open_run
+from taimill.recording import scene
+from taimill.model.params import RPM, ROOT, load_preset
+from taimill.runs.live import LiveMill
+from taimill.store.run import open_run
 from taimill.tui.app import MillApp
 
 P4 = ROOT / "presets" / "p4-cy-steel.toml"

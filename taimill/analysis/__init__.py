@@ -1,4 +1,5 @@
-"""Analysis of stored runs (SPEC §5). NumPy only: runs on any store, also one made on
-another machine. Modules: `theory` (analytic landmarks), `events` (stress energy and
-power estimators), `spatial` (g(r), contact and wear maps), `regime` (motion regime),
-`report` (figures)."""
+"""Analysis of runs, NumPy only: runs on any store, also one made on another machine.
+Modules: `theory` (analytic landmarks), `events` (stress energy and power estimators),
+`sampled` (the output-sampled estimator), `spatial` (g(r), contact and wear maps),
+`regime` (motion regime), `summary` (the streaming run summary), `sweep` (statistics
+over sweep points), `run` (everything about one stored run)."""

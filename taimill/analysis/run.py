@@ -15,8 +15,8 @@ from taimill.analysis.sampled import SampledStats
 from taimill.analysis.spatial import RadialDensity, WallMap, contact_map
 from taimill.analysis.theory import critical_ratio, single_ball_hit
 from taimill.errors import ConfigError
-from taimill.store import RunStore, open_run
-from taimill.summary import EnergyLedger
+from taimill.store.run import RunStore, open_run
+from taimill.analysis.summary import EnergyLedger
 
 
 @dataclass

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from taimill.geometry import Profile, build_profile, profile_sdf
-from taimill.physics.frame_np import Ramp  # NumPy twin, no taichi
+from taimill.model.geometry import Profile, build_profile, profile_sdf
+from taimill.model.frame import Ramp  # NumPy twin, no taichi
 
 SIDE, FLOOR, LID = -1, -2, -3  # body_j of wall events (sinks.EVENT_COLUMNS)
 

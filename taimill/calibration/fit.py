@@ -30,8 +30,8 @@ import numpy as np
 from taimill.calibration.data import DropData
 from taimill.calibration.optimise import brent
 from taimill.errors import ConfigError
-from taimill.params import GRAVITY, NormalLaw, load_material, pair_contact
-from taimill.physics import laws_np
+from taimill.model.params import GRAVITY, NormalLaw, load_material, pair_contact
+from taimill.model import laws as laws_np
 
 GRID = 13
 SPAN = 100.0  #: d and c_max are searched over [start/SPAN, start·SPAN]
@@ -135,7 +135,7 @@ def drop_model(pair: str, law_name: str | None, p: Parameter, heights):
     pair's automatic dt there, or less if the most damped candidate needs it), so the
     objective is smooth in the parameter, and one run length: 3 × twice the contact time
     of the pair's law (damping shortens a clamped contact)."""
-    from taimill.physics.calibration import Drop, resolved_dt, run_drops
+    from taimill.calibration.runs import Drop, resolved_dt, run_drops
 
     ball, jar, bb, bw, friction = pair_contact(pair, law=law_name)
     speeds = np.sqrt(2 * GRAVITY * np.asarray(heights))

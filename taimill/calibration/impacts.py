@@ -1,13 +1,13 @@
 """Validation tables from single impacts: the two-sphere impacts of thesis Fig 2.8
 against eqs 2.3/2.4, and the ±50 % parameter sensitivity of the drop test (Fig 2.5,
-bottom right). The runs are `taimill.physics.calibration`'s, imported when needed."""
+bottom right). The runs are `taimill.calibration.runs`'s, imported when needed."""
 
 from __future__ import annotations
 
 import dataclasses
 import math
 
-from taimill.params import NormalLaw, pair_contact
+from taimill.model.params import NormalLaw, pair_contact
 
 # Parameters of the impact function varied in Fig 2.5; the other laws have no d.
 VARIED = {"adams-impact": ("k", "n", "c", "d")}
@@ -45,7 +45,7 @@ def oblique(pair: str, offsets, speed: float, *, law: str | None = None, frictio
 
     For a constant-e law (hertz-mindlin) both coincide. Errors are relative to the
     expected value, or to `speed` where that is 0 (grazing Δ = 2r, head-on u̇_t)."""
-    from taimill.physics.calibration import FRICTIONLESS, two_sphere_impacts
+    from taimill.calibration.runs import FRICTIONLESS, two_sphere_impacts
 
     fr = None if friction else FRICTIONLESS
     runs = two_sphere_impacts(pair, [(o, speed) for o in offsets], law=law, friction=fr)
@@ -84,7 +84,7 @@ def sensitivity(pair: str, h0: float, *, law: str | None = None, target: str = "
     the normal law (k, n, c and, for adams-impact, d) scaled by 1 ± change in turn.
     Rows: parameter, factor, value (SI), e, rebound height h* (m), its change from the
     reference h* (m and relative), and the thesis' Δh = (h* - h0)/h0."""
-    from taimill.physics.calibration import Drop, run_drops
+    from taimill.calibration.runs import Drop, run_drops
 
     ball, jar, bb, bw, fr = pair_contact(pair, radius, law)
     base = bw if target == "plate" else bb

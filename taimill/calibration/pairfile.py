@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from taimill.params import contact_table, load_friction
+from taimill.model.params import contact_table, load_friction
 
 
 def _value(v) -> str:

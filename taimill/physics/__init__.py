@@ -1,4 +1,7 @@
-"""The physics package: the only one that imports taichi (STYLE rule 7)."""
+"""The Taichi package, the only one that imports taichi: fields (`state`), the laws and
+frame as Taichi functions, walls, the spatial hash and neighbour lists, the contact
+loop, the integrator, the kernels (`engine`), loading a mill into the fields (`mill`)
+and the launcher (`runner`). `ti.init` runs inside `runner.init_taichi`, never at import."""
 
 import os
 

@@ -7,8 +7,8 @@ kept apart from State (evolving). Shapes in brackets, SI units.
 
 import taichi as ti
 
-from taimill.geometry import PIECE_COLUMNS
-from taimill.sinks import ENERGY_COLUMNS, EVENT_COLUMNS
+from taimill.model.geometry import PIECE_COLUMNS
+from taimill.schema import DERIVED_EVENT_COLUMNS, ENERGY_COLUMNS, EVENT_COLUMNS
 
 # Contact slots per ball: 3 wall slots (side, floor, lid), then partner slots for the
 # ball-ball contacts this ball owns (partner index > own index). 12 = kissing number of
@@ -21,12 +21,12 @@ SLOTS = WALLS + PARTNER_SLOTS
 SLOT_T0, SLOT_UN, SLOT_UT, SLOT_PX, SLOT_PY, SLOT_PZ, SLOT_FPEAK, SLOT_UPEAK, SLOT_DN, SLOT_DT = range(10)
 SLOT_DATA = 10
 
-# Event record columns as the kernel writes them: sinks.EVENT_COLUMNS without the
-# stress energies, which the launcher derives from m_eff, un, ut.
-EVENT_FIELDS = tuple(k for k in EVENT_COLUMNS if k not in ("se_n", "se_t"))
+# Event record columns as the kernel writes them: the schema's event columns without
+# those the launcher derives after each launch (the stress energies).
+EVENT_FIELDS = tuple(k for k in EVENT_COLUMNS if k not in DERIVED_EVENT_COLUMNS)
 NCOL = len(EVENT_FIELDS)
 
-# Energy ledger snapshot columns, taken with every frame (sinks.ENERGY_COLUMNS but time).
+# Energy ledger snapshot columns, taken with every frame (the schema's ENERGY_COLUMNS but time).
 LEDGER_FIELDS = tuple(k for k in ENERGY_COLUMNS if k != "time")
 
 # Verlet list length per ball (equal spheres within a skin of 0.1 r: at most ~14).
@@ -69,7 +69,7 @@ class Fields:
         self.mu_d = ti.field(f64, B)
         self.v_s = ti.field(f64, B)  #: m/s
         self.v_d = ti.field(f64, B)  #: m/s
-        # jar profile: boundary pieces, rows of taimill.geometry [B, MAX_PIECES]
+        # jar profile: boundary pieces, rows of taimill.model.geometry [B, MAX_PIECES]
         self.n_pieces = ti.field(i32, B)
         self.piece = ti.Vector.field(PIECE_COLUMNS, f64, (B, MAX_PIECES))
         # uniform grid of the spatial hash [B]

@@ -23,14 +23,14 @@ from textual.worker import get_current_worker
 
 from taimill.analysis.theory import critical_ratio
 from taimill.errors import ConfigError
+from taimill.figures.snapshot import save_png
 from taimill.tui.controls import Controls
-from taimill.tui.figure import save_png
 from taimill.tui.help import HelpScreen
-from taimill.tui.history import History
+from taimill.tui.history import SERIES, History
 from taimill.tui.jarview import JarView
 from taimill.tui.messages import (FrameReady, FrictionRequested, Notice, ReadoutsReady, RebuildRequested, SimFault,
                                   SpeedsRequested)
-from taimill.tui.readouts import Readouts
+from taimill.tui.readouts import Readouts, text_lines
 from taimill.tui.recorders import Recorders
 from taimill.tui.simloop import SimulationLoop
 
@@ -112,8 +112,8 @@ class MillApp(App):
     def _import_recorders(self):
         """Import rerun and zarr now (≈ 1 s): a recording then opens in ≈ 0.15 s, which
         the mill waits for (LiveMill.add_sink)."""
-        importlib.import_module("taimill.recording")
-        importlib.import_module("taimill.store")
+        importlib.import_module("taimill.recording.sink")
+        importlib.import_module("taimill.store.run")
 
     def settings(self) -> dict:
         """The mill's current settings, as the controls show them."""
@@ -272,7 +272,8 @@ class MillApp(App):
                  f"μ_d {p.friction.mu_d:g}, Ω = {self.mill.plate_rpm:g} rpm, K = {self.mill.ratio:.4g}")
         history = {k: list(h) for k, h in self.loop.history.items()}
         self._save_png(path, dict(title=title, outline=p.jar.profile.outline, height=p.jar.height, position=f.position,
-                                  radius=self.mill.radius, psi=f.psi, history=history, values=dict(self.last_values),
+                                  radius=self.mill.radius, psi=f.psi, history=history, series=SERIES,
+                                  readouts=text_lines(dict(self.last_values)),
                                   time=f.sim_time, window=self.window_seconds))
 
     @work(thread=True, group="files")

@@ -2,7 +2,7 @@
 time, friction (μ_s, μ_d or a material pair), jar and ball count.
 
 A field takes effect on Enter. It only parses the number: the ranges live in
-`taimill.physics.live.LIMITS`, checked by the LiveMill (ConfigError naming the field and
+`taimill.runs.live.LIMITS`, checked by the LiveMill (ConfigError naming the field and
 its range); the input's red border while typing uses the same limits. When Ω changes,
 the jar speed last entered (K or ω) is the one held.
 """
@@ -17,8 +17,8 @@ from textual.containers import Horizontal, Vertical
 from textual.validation import Integer, Number
 from textual.widgets import Input, Label, Select, Static
 
-from taimill.params import MATERIALS_FILE, jar_names
-from taimill.physics.live import LIMITS
+from taimill.model.params import MATERIALS_FILE, jar_names
+from taimill.runs.live import LIMITS
 from taimill.tui.messages import FrictionRequested, Notice, RebuildRequested, SpeedsRequested
 
 # input id -> (label, key of LIMITS)

@@ -12,7 +12,7 @@ KEYS = (
     ("s", "step: advance one output frame (1/100 s by default) and pause"),
     ("r", "reset: back to t = 0, balls re-placed, speeds ramp up from rest"),
     ("o", "start / stop recording to a rerun file (.rrd, open with `rerun FILE`)"),
-    ("z", "start / stop recording to a zarr store (read with taimill.store.open_run)"),
+    ("z", "start / stop recording to a zarr store (read with taimill.store.run.open_run)"),
     ("g", "save the current figures (views, history, readouts) as a PNG"),
     ("? / f1", "this help"),
     ("escape", "leave a field, so that the letter keys act again"),

@@ -9,11 +9,11 @@ import math
 import numpy as np
 from textual.widgets import Static
 
-from taimill.cli import SUMMARY_ROWS
-from taimill.params import RPM
+from taimill.schema import SUMMARY_ROWS
+from taimill.model.params import RPM
 
 # (summary key, label, unit, scale): the run summary's figures that fit the panel, with
-# short labels; units and scales are those `taimill run` prints (cli.SUMMARY_ROWS)
+# short labels; units and scales are those `taimill run` prints (taimill.schema.SUMMARY_ROWS)
 _UNITS = {key: (unit, scale) for key, _, unit, scale in SUMMARY_ROWS}
 ROWS = tuple((key, label, *_UNITS[key]) for key, label in (
     ("impact_power", "impact power"),
@@ -30,6 +30,12 @@ def number(value, scale=1.0) -> str:
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "—"
     return f"{value * scale:.4g}"
+
+
+def text_lines(values: dict) -> list[str]:
+    """The readouts as plain text lines (for the PNG snapshot)."""
+    lines = [f"{label.strip():<22} {number(values.get(key), scale):>10} {unit}" for key, label, unit, scale in ROWS]
+    return lines + [f"{'regime':<22} {values.get('regime', '—'):>10}"]
 
 
 class Readouts(Static):

@@ -1,5 +1,5 @@
 """Recording a live run on demand, from the current simulated time on: a rerun
-recording (.rrd, `taimill.recording.RerunSink`) or a zarr store (`taimill.store.ZarrSink`).
+recording (.rrd, `taimill.recording.sink.RerunSink`) or a zarr store (`taimill.store.run.ZarrSink`).
 
 Times in a recording are the mill's simulated times (a recording started at t = 12 s
 starts there). Its summary covers what it received — energy balance counted from its
@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from taimill.sinks import FanOut, Relay
-from taimill.summary import SummarySink
+from taimill.store.sinks import FanOut, Relay
+from taimill.analysis.summary import SummarySink
 from taimill.tui.window import Rebased
 
 SUFFIX = {"rrd": ".rrd", "zarr": ".zarr"}
@@ -38,10 +38,10 @@ def new_path(out_dir: Path, kind: str) -> Path:
 
 def file_sink(kind: str, path: Path):
     if kind == "rrd":
-        from taimill.recording import RerunSink
+        from taimill.recording.sink import RerunSink
 
         return RerunSink(path)
-    from taimill.store import ZarrSink
+    from taimill.store.run import ZarrSink
 
     return ZarrSink(path)
 

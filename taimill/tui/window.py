@@ -18,8 +18,8 @@ from taimill.analysis.events import EventStats
 from taimill.analysis.regime import RegimeFeatures
 from taimill.analysis.rungeometry import RunGeometry
 from taimill.analysis.theory import critical_ratio
-from taimill.sinks import Relay
-from taimill.summary import EnergyLedger
+from taimill.store.sinks import Relay
+from taimill.analysis.summary import EnergyLedger
 
 CUMULATIVE = ("drive_work", "dissipated")
 

@@ -23,9 +23,9 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 
-from taimill import recording_scene as scene
-from taimill import recording_stats as stats
-from taimill.physics.frame_np import Ramp
+from taimill.recording import scene
+from taimill.recording import stats
+from taimill.model.frame import Ramp
 
 BATCH_SECONDS = 1.0  # simulated seconds of frames sent per batch
 BATCH_POINTS = 2_000_000  # … or fewer frames once this many ball positions wait

@@ -34,12 +34,13 @@ import time
 import numpy as np
 
 from taimill.errors import ConfigError, SimulationUnstable
-from taimill.params import RPM, Preset, load_friction, load_preset, max_impact_speed
-from taimill.physics import laws_np
-from taimill.physics.frame_np import Ramp
-from taimill.physics.mill import from_preset, set_friction
-from taimill.physics.simulation import Runner
-from taimill.sinks import FanOut
+from taimill.model.params import RPM, Preset, load_friction, load_preset, max_impact_speed
+from taimill.model import laws as laws_np
+from taimill.model.frame import Ramp
+from taimill.physics.mill import set_friction
+from taimill.model.spec import from_preset
+from taimill.physics.runner import Runner
+from taimill.store.sinks import FanOut
 
 SOURCE = "TUI"  # names live input in ConfigError messages
 FOREVER = 2**62  # step target of a live mill: it runs until stopped

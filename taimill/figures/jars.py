@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from taimill import geometry
+from taimill.model import geometry
 
 MM = 1e3  # m → mm
 GRID = 301  # SDF samples per side

@@ -14,12 +14,13 @@ from pathlib import Path
 
 import numpy as np
 
-from taimill import geometry
+from taimill.model import geometry
 from taimill.errors import ConfigError
-from taimill.physics import laws_np
+from taimill.model import laws as laws_np
 
-ROOT = Path(__file__).resolve().parent.parent
-MATERIALS_FILE = Path(__file__).resolve().parent / "data" / "materials.toml"
+PACKAGE = Path(__file__).resolve().parent.parent
+ROOT = PACKAGE.parent
+MATERIALS_FILE = PACKAGE / "data" / "materials.toml"
 JARS_DIR = ROOT / "jars"
 RPM = 2.0 * math.pi / 60.0
 GRAVITY = 9.81
@@ -306,7 +307,7 @@ def _friction(t: "_Table", name: str, base: Friction | None = None) -> Friction:
 
 
 # ------------------------------------------------------------------ jars
-# primitive → its keys (unit in the name) and allowed ranges; see taimill.geometry
+# primitive → its keys (unit in the name) and allowed ranges; see taimill.model.geometry
 PRIMITIVES = {
     "circle": {"radius_mm": (0, 1000)},
     "cut": {"distance_mm": (0, 1000), "angle_deg": (-360, 360)},

@@ -10,12 +10,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from taimill.params import GRAVITY, Balls, Friction, Jar, NormalLaw, pair_contact
-from taimill.physics import laws_np
-from taimill.physics.frame_np import Ramp
-from taimill.physics.mill import MillSpec
-from taimill.physics.simulation import Runner
-from taimill.sinks import MemorySink
+from taimill.model.params import GRAVITY, Balls, Friction, Jar, NormalLaw, pair_contact
+from taimill.model import laws as laws_np
+from taimill.model.frame import Ramp
+from taimill.model.spec import MillSpec
+from taimill.physics.runner import Runner
+from taimill.store.sinks import MemorySink
 
 STILL = Ramp(0.0, 0.0, 0.0, 1.0)
 FRICTIONLESS = Friction("frictionless", 0.0, 0.0, 1e-3, 1e-2)

@@ -1,16 +1,17 @@
-"""Running mills: Taichi set-up, the launch/drain loop feeding sinks, faults.
+"""The launcher: Taichi set-up, the launch/drain loop handing each mill's output to its
+sink, faults.
 
-    run(preset, sink) — one mill from a preset, summary returned.
-    Runner(specs)     — any batch of MillSpecs (tests, calibration, sweeps).
+    Runner(specs) — advances any batch of MillSpecs (runs, tests, calibration, sweeps).
+
+A sink here is any object with the `events`, `frames` and `energy` calls of
+`taimill.store.sinks.Sink`; the runner never imports a sink.
 """
 
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 import sys
-import time
 
 import numpy as np
 import taichi as ti
@@ -18,9 +19,9 @@ import taichi as ti
 from taimill.errors import SimulationUnstable
 from taimill.physics import state as S
 from taimill.physics.engine import Engine
-from taimill.physics.mill import MillSpec, from_preset, grid_cells_for, write_mill
-from taimill.sinks import EVENT_COLUMNS, FanOut, NullSink
-from taimill.summary import SummarySink
+from taimill.physics.mill import write_mill
+from taimill.model.spec import MillSpec, grid_cells_for
+from taimill.schema import EVENT_COLUMNS
 
 _initialised = False
 # balls: beyond this one mill runs in parallel mode. Measured crossover on the 2-core
@@ -151,43 +152,3 @@ class Runner:
         F = self.engine.F
         n = self.specs[b].n
         return {k: getattr(F, k).to_numpy()[b, :n] for k in ("x", "v", "s")}
-
-
-def start_point(preset, spec, sink) -> tuple[SummarySink, FanOut]:
-    """The summary sink of one mill and the stream feeding it and `sink`, started
-    (shared by run() and sweeps so that a sweep point is the same run)."""
-    sim_seconds = spec.steps * spec.dt
-    summary = SummarySink(min(preset.analysis_start, sim_seconds), sim_seconds, preset.jar.radius, preset.balls.radius)
-    out = FanOut(summary, sink)
-    out.start(preset.as_dict() | {"duration": sim_seconds}, spec.n, spec.radius)
-    return summary, out
-
-
-def point_result(preset, spec, summary, runner, b, wall, status) -> dict:
-    """SPEC §9 summary of mill b of `runner`; wall in s."""
-    result = summary.result(runner.time(b), wall)
-    result.update(dt=spec.dt, steps=int(runner.engine.F.step[b]), status=status,
-                  ratio=preset.ratio, plate_rpm=preset.plate_omega * 30 / math.pi)
-    return result
-
-
-def run(preset, sink=None, *, duration: float | None = None, progress=None) -> dict:
-    """Simulate one preset; streams to `sink`; returns the SPEC §9 summary."""
-    sink = sink or NullSink()
-    spec = from_preset(preset, duration)
-    summary, out = start_point(preset, spec, sink)
-    t0 = time.perf_counter()
-    runner = Runner([spec])
-    status = "complete"
-    try:
-        runner.run([out], progress)
-    except SimulationUnstable as err:
-        status = f"unstable: {err}"
-        raise
-    except KeyboardInterrupt:
-        status = "interrupted"
-        raise
-    finally:
-        result = point_result(preset, spec, summary, runner, 0, time.perf_counter() - t0, status)
-        out.finish(result, status)
-    return result

@@ -28,7 +28,7 @@ import numpy as np
 import zarr
 
 from taimill.errors import ConfigError
-from taimill.store import ZarrSink, open_run, plain
+from taimill.store.run import ZarrSink, open_run, plain
 
 SCHEMA_VERSION = 1
 VALUE_COLUMNS = ("jar", "balls", "pair", "plate_rpm", "ratio", "seed", "replica",

@@ -62,8 +62,8 @@ def replay(store, sink) -> None:
 
 def cmd_record(a) -> int:
     from taimill.errors import ConfigError
-    from taimill.recording import RerunSink
-    from taimill.store import open_run
+    from taimill.recording.sink import RerunSink
+    from taimill.store.run import open_run
 
     check_output(a.rrd, a.overwrite)
     source = _existing(a.run, "RUN.zarr")

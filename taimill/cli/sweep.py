@@ -56,8 +56,8 @@ def register(subparsers) -> None:
 
 def request(a):
     """Validated sweep.Request from the parsed arguments."""
-    from taimill.cli import dt_option
-    from taimill.sweep import Request, parse_values
+    from taimill.cli.common import dt_option
+    from taimill.runs.sweep import Request, parse_values
 
     axes = {}
     for key, opt, kind in (("ratio", "--ratio", float), ("plate_rpm", "--plate-rpm", float), ("pair", "--pair", str),
@@ -83,9 +83,9 @@ def request(a):
 
 
 def cmd_sweep(a) -> int:
-    from taimill.cli import _plain, _stderr_console
-    from taimill.sweep import plan, run_sweep
-    from taimill.sweepstore import SweepStore
+    from taimill.cli.common import plain as _plain, stderr_console as _stderr_console
+    from taimill.runs.sweep import plan, run_sweep
+    from taimill.store.sweep import SweepStore
 
     req, run_kw = request(a)
     plan(req)  # every point validated before a store is touched or a kernel runs

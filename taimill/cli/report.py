@@ -41,7 +41,7 @@ def _open(a):
 
 
 def cmd_analyse(a) -> int:
-    from taimill.cli import _plain
+    from taimill.cli.common import plain as _plain
 
     q = _open(a).quantities()
     if a.json:
@@ -54,11 +54,11 @@ def cmd_analyse(a) -> int:
 def cmd_report(a) -> int:
     out = Path(a.out) if a.out else Path(str(Path(a.run)).rstrip("/").removesuffix(".zarr") + "-report")
     if _is_sweep(a.run):
-        from taimill.sweepreport import report_sweep
+        from taimill.figures.sweep import report_sweep
 
         paths = report_sweep(a.run, out, a.format, overlay=a.overlay)
     else:
-        from taimill.analysis.report import write_report
+        from taimill.figures.report import write_report
 
         if a.overlay:
             from taimill.errors import ConfigError
@@ -72,7 +72,7 @@ def cmd_report(a) -> int:
 
 def _is_sweep(path) -> bool:
     try:
-        from taimill.sweepstore import is_sweep
+        from taimill.store.sweep import is_sweep
     except ImportError:
         return False
     return Path(path).is_dir() and is_sweep(path)
@@ -121,8 +121,3 @@ def text_report(q: dict) -> str:
                      + f", {h['power_per_area']:.4g} W/m² ({h['concentration']:.3g}× the wall mean)")
     return "\n".join(lines)
 
-
-if __name__ == "__main__":
-    from taimill.cli import main
-
-    sys.exit(main())

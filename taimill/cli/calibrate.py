@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from taimill.cli import _plain  # JSON-safe values, one definition
+from taimill.cli.common import plain as _plain  # JSON-safe values, one definition
 
 EXIT_NO_MATCH = 1
 MAX_H0_MM = 10_000.0
@@ -37,14 +37,14 @@ def _check(value, name, lo, hi, unit, lo_open=True):
 
 # ------------------------------------------------------------------ drop
 def cmd_drop(a) -> int:
-    from taimill.calibration.figures import drop_figure
-    from taimill.params import pair_contact
+    from taimill.figures.calibration import drop_figure
+    from taimill.model.params import pair_contact
 
     heights = [_check(h, "--h0", 0, MAX_H0_MM, "mm (drop height)") for h in a.h0]
     if a.radius_mm is not None:
         _check(a.radius_mm, "--radius-mm", 0, 100, "mm")
     pair_contact(a.pair, law=a.law)  # bad input is reported before taichi starts
-    from taimill.physics.calibration import drop_tests
+    from taimill.calibration.runs import drop_tests
 
     rs = drop_tests(a.pair, [h * 1e-3 for h in heights], target=a.target, law=a.law,
                     radius=None if a.radius_mm is None else a.radius_mm * 1e-3)
@@ -70,7 +70,7 @@ def cmd_drop(a) -> int:
 # ------------------------------------------------------------------ fit
 def cmd_fit(a) -> int:
     from taimill.calibration.data import load_drop_data
-    from taimill.calibration.figures import fit_figure
+    from taimill.figures.calibration import fit_figure
     from taimill.calibration.fit import FitError, fit_drops
     from taimill.calibration.pairfile import write_pair_file
     from taimill.errors import ConfigError
@@ -113,7 +113,7 @@ def cmd_fit(a) -> int:
 
 # ------------------------------------------------------------------ sensitivity
 def cmd_sensitivity(a) -> int:
-    from taimill.calibration.figures import sensitivity_figure
+    from taimill.figures.calibration import sensitivity_figure
     from taimill.calibration.impacts import sensitivity
 
     h0 = _check(a.h0, "--h0", 0, MAX_H0_MM, "mm (drop height)")
@@ -148,9 +148,9 @@ def _offsets(text: str) -> list[float]:
 
 
 def cmd_oblique(a) -> int:
-    from taimill.calibration.figures import oblique_figure
+    from taimill.figures.calibration import oblique_figure
     from taimill.calibration.impacts import oblique
-    from taimill.params import pair_contact
+    from taimill.model.params import pair_contact
 
     ball = pair_contact(a.pair, law=a.law)[0]
     grazing = 2e3 * ball.radius

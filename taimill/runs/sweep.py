@@ -17,9 +17,9 @@ import os
 from dataclasses import dataclass
 
 from taimill.errors import ConfigError
-from taimill.sweepexec import Job, chunk_seconds, run_dask, run_local
-from taimill.sweepstats import parabolic_peak, refine_candidates
-from taimill.sweepstore import SweepStore, scalars
+from taimill.runs.executors import Job, chunk_seconds, run_dask, run_local
+from taimill.analysis.sweep import parabolic_peak, refine_candidates
+from taimill.store.sweep import SweepStore, scalars
 
 # Swept preset keys, outermost first (ratio innermost: a chunk holds neighbouring K).
 AXES = ("jar", "balls.count", "pair", "plate_rpm", "ratio")
@@ -105,7 +105,7 @@ def plan(req: Request, ratios_for=None) -> list[dict]:
     """Points of the cartesian product in AXES order, replicas innermost, each
     {overrides, values, preset}; every preset is loaded and validated here, before
     any kernel runs. `ratios_for(curve_values) -> list[K]` replaces the K axis (refine)."""
-    from taimill.params import load_preset
+    from taimill.model.params import load_preset
 
     base = load_preset(req.preset, req.overrides)
     seed0 = base.seed

@@ -29,7 +29,7 @@ import numpy as np
 
 from taimill.analysis.theory import critical_ratio
 from taimill.errors import ConfigError
-from taimill.sweepstats import mean_band
+from taimill.analysis.sweep import mean_band
 
 CURVE_AXES = (("jar", "{}"), ("balls", "{:.0f} balls"), ("pair", "{}"), ("plate_rpm", "Ω = {:g} rpm"))
 # file stem, figure title, [(column, panel title)], y label, scale to the plotted unit
@@ -50,7 +50,7 @@ def report_sweep(path, out_dir, fmt: str = "png", overlay=None) -> list[Path]:
     import matplotlib
 
     matplotlib.use("Agg")
-    from taimill.sweepstore import open_sweep
+    from taimill.store.sweep import open_sweep
 
     if fmt not in ("png", "svg", "pdf"):
         raise ConfigError("command line", "--format", fmt, "must be one of png, svg, pdf")

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from taimill.sinks import MemorySink, NullSink
+from taimill.store.sinks import MemorySink, NullSink
 
 
 @dataclass(frozen=True)
@@ -31,7 +31,7 @@ class Job:
     """One sweep point to simulate: its index in the sweep plan and its resolved preset."""
 
     index: int
-    preset: object  #: taimill.params.Preset
+    preset: object  #: taimill.model.params.Preset
 
 
 @dataclass
@@ -58,7 +58,7 @@ _progress = None  # the local backend's queue, set in each worker process
 
 
 def _init_local_worker(progress_queue):
-    from taimill.physics.simulation import init_taichi
+    from taimill.physics.runner import init_taichi
 
     global _progress
     _progress = progress_queue
@@ -84,8 +84,10 @@ def run_chunk(chunk_id: int, jobs: list[Job], keep_streams: bool) -> list[PointR
     keeps what it computed (status "unstable: …") and the others run on. Each point's
     wall_seconds is the batch's wall time shared in proportion to its ball-steps (the
     mills of a batch advance one after another on the worker's one thread)."""
-    from taimill.physics.mill import from_preset
-    from taimill.physics.simulation import Runner, init_taichi, point_result, start_point
+    from taimill.model.spec import from_preset
+    from taimill.physics.runner import Runner, init_taichi
+    from taimill.runs.simulation import point_result
+    from taimill.runs.simulation import start_point
 
     _check_dask_worker()
     init_taichi(threads=1)

@@ -18,7 +18,7 @@ from taimill.analysis.regime import RegimeFeatures
 from taimill.analysis.rungeometry import RunGeometry
 from taimill.analysis.spatial import RadialDensity, WallMap
 from taimill.analysis.theory import critical_ratio, single_ball_hit
-from taimill.sinks import ENERGY_COLUMNS
+from taimill.schema import ENERGY_COLUMNS
 
 
 class EnergyLedger:

@@ -32,8 +32,8 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from taimill.geometry import build_profile
-from taimill.recording_stats import hist_edges
+from taimill.model.geometry import build_profile
+from taimill.recording.stats import hist_edges
 
 JAR, WALL, FLOOR, BALLS = "/jar", "/jar/wall", "/jar/floor", "/jar/balls"
 IMPACTS = {"normal": "/jar/impacts/normal", "tangential": "/jar/impacts/tangential"}

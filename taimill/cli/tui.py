@@ -7,7 +7,7 @@ from pathlib import Path
 
 
 def register(subparsers):
-    from taimill.cli import _add_overrides
+    from taimill.cli.common import add_overrides as _add_overrides
 
     t = subparsers.add_parser("tui", help="live terminal UI: tune Ω, the jar speed and friction of a running mill")
     t.add_argument("preset", help="preset TOML file, e.g. presets/p4-cy-steel.toml")
@@ -19,9 +19,9 @@ def register(subparsers):
 
 
 def cmd_tui(a) -> int:
-    from taimill.cli import _overrides
+    from taimill.cli.common import overrides as _overrides
     from taimill.errors import ConfigError
-    from taimill.params import load_preset
+    from taimill.model.params import load_preset
 
     if not 0.1 <= a.window <= 600:
         raise ConfigError("command line", "--window", a.window, "allowed range [0.1, 600] s")
@@ -31,7 +31,7 @@ def cmd_tui(a) -> int:
     overrides = _overrides(a)
     preset = load_preset(a.preset, overrides)
     print("taimill: compiling the kernels …", file=sys.stderr)
-    from taimill.physics.live import LiveMill
+    from taimill.runs.live import LiveMill
     from taimill.tui.app import MillApp
 
     mill = LiveMill(preset, overrides)  # main thread: ti.init, fields, first kernel call

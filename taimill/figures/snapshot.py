@@ -1,5 +1,5 @@
-"""The current figures as a PNG (key g): the jar from above and in section with the
-balls, the history of the window figures, and the readouts. Matplotlib's object API
+"""The live mill's current figures as a PNG (the TUI's key g): the jar from above and
+in section with the balls, the history of the window figures, and the readouts. Matplotlib's object API
 with the Agg canvas, so it can run in a worker thread without a display."""
 
 from __future__ import annotations
@@ -9,17 +9,15 @@ from pathlib import Path
 
 import numpy as np
 
-from taimill.tui.history import SERIES
-from taimill.tui.readouts import ROWS, number
-
 MM = 1e3
 
 
 def save_png(path: Path, *, title: str, outline: np.ndarray, height: float, position: np.ndarray,
-             radius: np.ndarray, psi: float | None, history: dict, values: dict, time: float,
-             window: float) -> Path:
+             radius: np.ndarray, psi: float | None, history: dict, series: dict, readouts: list[str],
+             time: float, window: float) -> Path:
     """Write the figure; lengths in m, times in s; history: readout series with their
-    window ends `sim_seconds`. Returns path."""
+    window ends `sim_seconds`, drawn as `series` says (key -> (label, unit, scale));
+    readouts: lines of text. Returns path."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.patches import Circle
@@ -45,15 +43,13 @@ def save_png(path: Path, *, title: str, outline: np.ndarray, height: float, posi
         ax.autoscale_view()
 
     cells = [grid[0, 1], grid[0, 2], grid[1, 1], grid[1, 2]]
-    for cell, (key, (label, unit, scale)) in zip(cells, SERIES.items()):
+    for cell, (key, (label, unit, scale)) in zip(cells, series.items()):
         ax = fig.add_subplot(cell)
         ax.plot(history.get("sim_seconds", []), np.asarray(history.get(key, []), float) * scale, ".-", color="C0")
         ax.set(title=f"{label} ({unit}), window {window:g} s", xlabel="simulated time at the window's end (s)")
     text = fig.add_subplot(grid[2, 1:])
     text.axis("off")
-    lines = [f"{label.strip():<22} {number(values.get(key), scale):>10} {unit}" for key, label, unit, scale in ROWS]
-    lines.append(f"{'regime':<22} {values.get('regime', '—'):>10}")
-    text.text(0.0, 1.0, "\n".join(lines), family="monospace", va="top", fontsize=9)
+    text.text(0.0, 1.0, "\n".join(readouts), family="monospace", va="top", fontsize=9)
     fig.suptitle(title)
     fig.savefig(path, dpi=100)
     return path

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from taimill.errors import ConfigError
-from taimill.geometry import Profile, profile_sdf
+from taimill.model.geometry import Profile, profile_sdf
 
 GAP = 1e-4  # m, clearance between balls and to the walls at t = 0
 

@@ -22,7 +22,7 @@ from functools import cached_property
 import numpy as np
 import zarr
 
-from taimill.sinks import ENERGY_COLUMNS, EVENT_COLUMNS
+from taimill.schema import ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_COLUMNS, PER_BALL
 
 SCHEMA_VERSION = 1
 
@@ -40,13 +40,8 @@ class Column:
 
 def _frame_columns(n_balls: int) -> dict[str, Column]:
     vec = ("frame", "ball", "xyz")
-    row = (n_balls, 3)
-    return {
-        "time": Column("f8", "s", "simulated time", ("frame",)),
-        "position": Column("f8", "m", "ball centres, jar frame", vec, row),
-        "velocity": Column("f8", "m/s", "ball velocities, jar frame", vec, row),
-        "spin": Column("f8", "rad/s", "absolute spin, jar-frame components", vec, row),
-    }
+    return {k: Column(dtype, unit, text, vec, (n_balls, 3)) if k in PER_BALL else Column(dtype, unit, text, ("frame",))
+            for k, (dtype, unit, text) in FRAME_COLUMNS.items()}
 
 
 def _flat_columns(table: dict[str, tuple[str, str, str]], dim: str) -> dict[str, Column]:

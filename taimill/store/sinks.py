@@ -18,37 +18,8 @@ from typing import Protocol
 
 import numpy as np
 
-# name -> (dtype, unit, meaning)
-EVENT_COLUMNS: dict[str, tuple[str, str, str]] = {
-    "t_start": ("f8", "s", "time of first touch"),
-    "duration": ("f8", "s", "first touch to separation"),
-    "body_i": ("i4", "-", "ball index (the lower index for ball-ball)"),
-    "body_j": ("i4", "-", "partner ball index, or -1 side wall, -2 floor, -3 lid"),
-    "kind": ("i1", "-", "0 ball-ball, 1 ball-wall"),
-    "x": ("f8", "m", "contact point at onset, jar frame"),
-    "y": ("f8", "m", "contact point at onset, jar frame"),
-    "z": ("f8", "m", "contact point at onset, jar frame"),
-    "un": ("f8", "m/s", "onset normal approach speed (>= 0)"),
-    "ut": ("f8", "m/s", "onset slip speed at the contact point, spin included"),
-    "m_eff": ("f8", "kg", "effective mass m_i m_j/(m_i+m_j); m_ball for walls"),
-    "se_n": ("f8", "J", "normal stress energy 1/2 m_eff un^2"),
-    "se_t": ("f8", "J", "tangential stress energy 1/2 m_eff ut^2"),
-    "peak_force": ("f8", "N", "largest normal force during the event"),
-    "peak_penetration": ("f8", "m", "largest overlap during the event"),
-    "dissipated_normal": ("f8", "J", "work of the normal damper (and of the F>=0 clamp)"),
-    "dissipated_friction": ("f8", "J", "friction work"),
-}
+from taimill.schema import ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_FIELDS
 
-ENERGY_COLUMNS: dict[str, tuple[str, str, str]] = {
-    "time": ("f8", "s", "simulated time"),
-    "kinetic": ("f8", "J", "ground-frame kinetic energy, translation + rotation"),
-    "potential": ("f8", "J", "gravitational energy m g z"),
-    "elastic": ("f8", "J", "energy stored in the contact springs"),
-    "drive_work": ("f8", "J", "work done by the jar walls on the balls since t = 0"),
-    "dissipated": ("f8", "J", "energy dissipated by all contacts since t = 0"),
-}
-
-FRAME_FIELDS = ("time", "position", "velocity", "spin")
 
 
 def empty_events() -> dict[str, np.ndarray]:

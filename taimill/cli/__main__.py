@@ -1,0 +1,5 @@
+import sys
+
+from taimill.cli import main
+
+sys.exit(main())

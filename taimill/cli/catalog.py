@@ -1,0 +1,47 @@
+"""`taimill presets`, `taimill jars [show NAME]`: what can be run, and the jars drawn."""
+
+from __future__ import annotations
+
+import json
+
+
+def register(sub) -> None:
+    sub.add_parser("presets", help="list presets").set_defaults(fn=cmd_presets)
+    j = sub.add_parser("jars", help="list jars (area, volume, pieces); 'jars show NAME' draws one")
+    j.add_argument("--json", action="store_true", help="print the table as a JSON list")
+    j.set_defaults(fn=cmd_jars)
+    jsub = j.add_subparsers(dest="jar_command")
+    js = jsub.add_parser("show", help="draw a jar's outline and signed-distance field")
+    js.add_argument("name", help="jar name (jars/NAME.toml) or path to a jar TOML")
+    js.add_argument("--out", help="image to write, .png or .svg (default jar-NAME.png)")
+
+
+def cmd_presets(a) -> int:
+    from taimill.model.params import ROOT
+
+    for p in sorted((ROOT / "presets").glob("*.toml")):
+        first = p.read_text().splitlines()[0].lstrip("# ")
+        print(f"{p.relative_to(ROOT)}  {first}")
+    return 0
+
+
+def cmd_jars(a) -> int:
+    from taimill.figures.jars import draw_jar, jar_row
+    from taimill.model.params import jar_names, load_jar
+
+    if getattr(a, "jar_command", None) == "show":
+        jar = load_jar(a.name, "command line")
+        print(draw_jar(jar, a.out or f"jar-{jar.name}.png"))
+        return 0
+    names = jar_names()
+    cy = load_jar("CY").volume if "CY" in names else None
+    rows = [jar_row(load_jar(n), cy) for n in names]
+    if a.json:
+        print(json.dumps(rows, indent=1, ensure_ascii=False))
+        return 0
+    print(f"{'jar':6} {'area mm²':>9} {'vol ml':>7} {'/CY':>6} {'pieces':>6} {'fillet mm':>9}  description")
+    for r in rows:
+        ratio = "-" if r["ratio_to_CY"] is None else f"{r['ratio_to_CY']:.3f}"
+        print(f"{r['name']:6} {r['area_mm2']:9.1f} {r['volume_ml']:7.2f} {ratio:>6} {r['pieces']:6d} "
+              f"{r['fillet_mm']:9g}  {r['description']}")
+    return 0

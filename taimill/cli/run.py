@@ -1,0 +1,78 @@
+"""`taimill run PRESET [overrides]`: one simulation, its summary, store and recording."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+from taimill.cli.common import EXIT_UNSTABLE, add_overrides, overrides, plain, stderr_console, summary_table
+
+
+def register(sub) -> None:
+    r = sub.add_parser("run", help="simulate a preset, summarise, store")
+    r.add_argument("preset", help="preset TOML file, e.g. presets/p4-cy-steel.toml")
+    r.add_argument("--out", help="zarr store to write (RUN.zarr)")
+    r.add_argument("--overwrite", action="store_true", help="replace an existing --out store or --rrd file")
+    r.add_argument("--rrd", help="rerun recording to write (RUN.rrd); open it with `taimill view RUN.rrd`")
+    r.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
+    add_overrides(r)
+    r.set_defaults(fn=cmd_run)
+
+
+def cmd_run(a) -> int:
+    from taimill.errors import SimulationUnstable
+    from taimill.model.params import load_preset
+
+    preset = load_preset(a.preset, overrides(a))
+    if a.out and Path(a.out).exists() and not a.overwrite:
+        from taimill.errors import ConfigError
+
+        raise ConfigError("command line", "--out", a.out, "exists; pass --overwrite to replace it")
+    if a.rrd:
+        from taimill.cli.record import check_output
+
+        check_output(a.rrd, a.overwrite)
+    from taimill.runs.simulation import run
+    from taimill.store.sinks import NullSink
+
+    sink = NullSink()
+    if a.out:
+        from taimill.store.run import ZarrSink
+
+        sink = ZarrSink(a.out)
+    if a.rrd:
+        from taimill.recording.sink import RerunSink
+        from taimill.store.sinks import FanOut
+
+        sink = FanOut(sink, RerunSink(a.rrd))
+    show_bar = not a.json or sys.stderr.isatty()
+    try:
+        if show_bar:
+            summary = _run_with_bar(run, preset, sink)
+        else:
+            summary = run(preset, sink)
+    except SimulationUnstable as err:
+        print(f"taimill: {err}" + (f" (everything up to it is in {a.out})" if a.out else ""), file=sys.stderr)
+        return EXIT_UNSTABLE
+    if a.json:
+        print(json.dumps(plain(summary)))
+    else:
+        print(f"{preset.source}: {preset.jar.name} jar, {preset.balls.count} balls, {preset.pair}, "
+              f"Ω = {preset.plate_omega * 30 / math.pi:g} rpm, K = {preset.ratio:g}")
+        print(summary_table(summary))
+        if a.out:
+            print(f"stored in {a.out}")
+        if a.rrd:
+            print(f"recorded in {a.rrd} (open it with `taimill view {a.rrd}`)")
+    return 0
+
+
+def _run_with_bar(run, preset, sink):
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.completed:.2f}/{task.total:.1f} s"),
+                  TimeRemainingColumn(), transient=True, console=stderr_console()) as bar:
+        task = bar.add_task("run", total=preset.duration)
+        return run(preset, sink, progress=lambda t: bar.update(task, completed=t))

@@ -1,0 +1,55 @@
+"""One run of a preset: the summary sink and the caller's sink fed by one stream.
+
+    run(preset, sink) — one mill from a preset, summary returned.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+from taimill.analysis.summary import SummarySink
+from taimill.errors import SimulationUnstable
+from taimill.model.spec import from_preset
+from taimill.physics.runner import Runner
+from taimill.store.sinks import FanOut, NullSink
+
+
+def start_point(preset, spec, sink) -> tuple[SummarySink, FanOut]:
+    """The summary sink of one mill and the stream feeding it and `sink`, started
+    (shared by run() and sweeps so that a sweep point is the same run)."""
+    sim_seconds = spec.steps * spec.dt
+    summary = SummarySink(min(preset.analysis_start, sim_seconds), sim_seconds, preset.jar.radius, preset.balls.radius)
+    out = FanOut(summary, sink)
+    out.start(preset.as_dict() | {"duration": sim_seconds}, spec.n, spec.radius)
+    return summary, out
+
+
+def point_result(preset, spec, summary, runner, b, wall, status) -> dict:
+    """SPEC §9 summary of mill b of `runner`; wall in s."""
+    result = summary.result(runner.time(b), wall)
+    result.update(dt=spec.dt, steps=int(runner.engine.F.step[b]), status=status,
+                  ratio=preset.ratio, plate_rpm=preset.plate_omega * 30 / math.pi)
+    return result
+
+
+def run(preset, sink=None, *, duration: float | None = None, progress=None) -> dict:
+    """Simulate one preset; streams to `sink`; returns the SPEC §9 summary."""
+    sink = sink or NullSink()
+    spec = from_preset(preset, duration)
+    summary, out = start_point(preset, spec, sink)
+    t0 = time.perf_counter()
+    runner = Runner([spec])
+    status = "complete"
+    try:
+        runner.run([out], progress)
+    except SimulationUnstable as err:
+        status = f"unstable: {err}"
+        raise
+    except KeyboardInterrupt:
+        status = "interrupted"
+        raise
+    finally:
+        result = point_result(preset, spec, summary, runner, 0, time.perf_counter() - t0, status)
+        out.finish(result, status)
+    return result

@@ -1,9 +1,11 @@
 import pytest
 
-from taimill.physics.simulation import init_taichi
 
+@pytest.fixture(scope="session")
+def taichi():
+    """ti.init once for the session, for tests that call Taichi kernels directly (a
+    second ti.init would invalidate fields). Runs, runners and the live mill start
+    Taichi themselves; NumPy-only tests never do."""
+    from taimill.physics.runner import init_taichi
 
-@pytest.fixture(scope="session", autouse=True)
-def taichi_once():
-    """ti.init once for the whole session (a second call invalidates fields)."""
     init_taichi()

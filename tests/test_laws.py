@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 import taichi as ti
 
-from taimill.params import load_preset, pair_contact
-from taimill.physics import laws, laws_np
+from taimill.model.params import load_preset, pair_contact
+from taimill.physics import laws
+from taimill.model import laws as laws_np
 
 N_PER_MM15 = 1e3**1.5  # N/mm^1.5 → N/m^1.5
 
@@ -43,6 +44,7 @@ def _eval_normal(law: ti.i32, u: ti.types.ndarray(), ud: ti.types.ndarray(), k: 
         out[i, 2] = laws.elastic_energy(u[i], fel, n)
 
 
+@pytest.mark.usefixtures("taichi")
 @pytest.mark.parametrize("law", list(laws_np.LAWS))
 def test_taichi_normal_law_equals_numpy_twin(law):
     # Same formula, same double precision: agreement to 1e-12 relative.
@@ -66,6 +68,7 @@ def _eval_friction(v: ti.types.ndarray(), out: ti.types.ndarray(), mu_s: ti.f64,
         out[i] = laws.friction_coefficient(v[i], mu_s, mu_d, vs, vd)
 
 
+@pytest.mark.usefixtures("taichi")
 def test_friction_coefficient_eq_3_7_and_twin():
     v = np.linspace(0.0, 0.03, 3001)
     out = np.zeros_like(v)

@@ -1,0 +1,192 @@
+"""The architecture as rules on the import graph, read from the source with `ast`
+(no import is executed). Each package may import only the packages listed for it in
+LAYERS; only `physics` imports taichi and only `figures` (and the recording, for
+colour maps) import matplotlib; no module imports itself through a cycle; the TUI reaches the
+simulation only through the live mill's public API. A failure names the import.
+Every import counts, also one inside a function: a lazy import is still a dependency.
+"""
+
+from __future__ import annotations
+
+import ast
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / "taimill"
+
+# package -> the taimill packages it may import (besides itself). Top-level modules
+# count as packages of their own name.
+NEUTRAL = {"errors", "schema"}
+LAYERS: dict[str, set[str]] = {
+    "": set(),  # taimill/__init__.py
+    "__main__": {"cli"},
+    "errors": set(),
+    "schema": set(),
+    "model": NEUTRAL,
+    "physics": NEUTRAL | {"model"},
+    "store": NEUTRAL | {"model"},
+    "analysis": NEUTRAL | {"model", "store"},
+    "figures": NEUTRAL | {"model", "store", "analysis"},
+    "recording": NEUTRAL | {"model", "store", "analysis"},
+    "runs": NEUTRAL | {"model", "physics", "store", "analysis"},
+    "calibration": NEUTRAL | {"model", "physics", "store", "analysis", "runs"},
+    "tui": NEUTRAL | {"model", "store", "analysis", "figures", "recording", "runs"},
+    "cli": NEUTRAL | {"model", "store", "analysis", "figures", "recording", "runs", "calibration", "tui"},
+}
+# The recording takes its colour tables from matplotlib's colormaps; it draws nothing.
+THIRD_PARTY_HOMES = {"taichi": {"physics"}, "matplotlib": {"figures", "recording"}}
+# The one module of `runs` the TUI may use, and only its public names.
+TUI_GATE = "taimill.runs.live"
+
+
+def module_name(path: Path, root: Path) -> str:
+    parts = list(path.relative_to(root.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imports(path: Path, root: Path) -> list[tuple[str, tuple[str, ...], int]]:
+    """(imported module, names taken from it, line) for every import in a file;
+    relative imports are resolved."""
+    me = module_name(path, root)
+    package = me if path.name == "__init__.py" else me.rpartition(".")[0]
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            out += [(a.name, (), node.lineno) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                up = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(up + ([node.module] if node.module else []))
+            out.append((base, tuple(a.name for a in node.names), node.lineno))
+    return out
+
+
+def import_graph(root: Path) -> dict[str, list[tuple[str, tuple[str, ...], int]]]:
+    """module -> its imports; `from pkg import mod` is recorded as an import of pkg.mod."""
+    modules = {module_name(p, root): p for p in root.rglob("*.py")}
+    graph = {}
+    for mod, path in modules.items():
+        edges = []
+        for target, names, line in imports(path, root):
+            subs = [f"{target}.{n}" for n in names if f"{target}.{n}" in modules]
+            edges += [(s, (), line) for s in subs] or [(target, names, line)]
+        graph[mod] = edges
+    return graph
+
+
+def layer_of(module: str) -> str | None:
+    parts = module.split(".")
+    if parts[0] != "taimill":
+        return None
+    return parts[1] if len(parts) > 1 else ""
+
+
+def private_attributes(path: Path) -> list[tuple[str, int]]:
+    """`x._name` where x is not self/cls: reaching into another object's internals."""
+    bad = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__"):
+            if not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")):
+                bad.append((ast.unparse(node), node.lineno))
+    return bad
+
+
+def violations(root: Path) -> list[str]:
+    graph = import_graph(root)
+    found = []
+    for mod, edges in sorted(graph.items()):
+        layer = layer_of(mod)
+        if layer not in LAYERS:
+            found.append(f"{mod}: package '{layer}' has no place in LAYERS")
+            continue
+        for target, names, line in edges:
+            top = target.split(".")[0]
+            if top in THIRD_PARTY_HOMES and layer not in THIRD_PARTY_HOMES[top]:
+                found.append(f"{mod}:{line} imports {top} (only {', '.join(sorted(THIRD_PARTY_HOMES[top]))} may)")
+            other = layer_of(target)
+            if other is None or other == layer or other == "":
+                continue
+            if other not in LAYERS[layer]:
+                found.append(f"{mod}:{line} imports {target}: '{layer}' may not import '{other}'")
+            if layer == "tui" and other == "runs":
+                if target != TUI_GATE:
+                    found.append(f"{mod}:{line} imports {target}: the TUI uses only {TUI_GATE}")
+                found += [f"{mod}:{line} imports private {TUI_GATE}.{n}" for n in names if n.startswith("_")]
+    for path in sorted((root / "tui").glob("*.py")):
+        found += [f"{module_name(path, root)}:{line} reaches into {expr}" for expr, line in private_attributes(path)]
+    found += [f"import cycle: {' -> '.join(c)}" for c in cycles(graph)]
+    return found
+
+
+def cycles(graph) -> list[list[str]]:
+    """One cycle per strongly connected component of more than one module (Tarjan)."""
+    index, low, stack, on, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w, _, _ in graph.get(v, ()):
+            if w not in graph:
+                continue
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp) + [sorted(comp)[0]])
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_the_package_keeps_its_layers():
+    assert violations(PACKAGE) == []
+
+
+@pytest.mark.parametrize("file, line, expected", [
+    ("model/geometry.py", "import taichi as ti", "taimill.model.geometry:{n} imports taichi"),
+    ("physics/state.py", "from taimill.store.sinks import Sink", "'physics' may not import 'store'"),
+    ("analysis/events.py", "from taimill.physics import state", "'analysis' may not import 'physics'"),
+    ("store/run.py", "import matplotlib.pyplot as plt", "imports matplotlib"),
+    ("tui/controls.py", "from taimill.runs.sweep import plan", "the TUI uses only taimill.runs.live"),
+    ("tui/app.py", "x = self.mill._lock", "reaches into self.mill._lock"),
+    ("model/frame.py", "from taimill.model import spec", "import cycle: taimill.model.frame"),
+])
+def test_a_planted_bad_import_is_named(tmp_path, file, line, expected):
+    root = tmp_path / "taimill"
+    shutil.copytree(PACKAGE, root, ignore=shutil.ignore_patterns("__pycache__"))
+    target = root / file
+    n = len(target.read_text().splitlines()) + 1
+    target.write_text(target.read_text() + line + "\n")
+    found = violations(root)
+    assert any(expected.format(n=n) in v for v in found), found
+
+
+NUMPY_ONLY_TESTS = ("test_analysis", "test_store", "test_cli", "test_layers", "test_golden")
+
+
+def test_numpy_only_tests_do_not_start_taichi():
+    # conftest and these test modules must not import taichi: they test NumPy code.
+    code = ("import sys; " + "; ".join(f"import {m}" for m in ("conftest", *NUMPY_ONLY_TESTS))
+            + "; sys.exit('taichi' in sys.modules)")
+    tests = Path(__file__).resolve().parent
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tests), str(PACKAGE.parent), os.environ.get("PYTHONPATH", "")])}
+    assert subprocess.run([sys.executable, "-c", code], cwd=tests, env=env).returncode == 0

@@ -94,9 +94,9 @@ def test_free_flight_is_a_straight_line_in_the_ground_frame():
     ground_x, ground_v = np.array(ground_x), np.array(ground_v)
     straight = ground_x[0] + np.outer(f["time"], ground_v[0])
     assert np.abs(ground_x - straight).max() < 1e-6
-    a = p.plate_omega**2 * p.plate_radius + 1.5 * abs(p.plate_omega) / p.ramp_time * p.plate_radius
+    a = p.drive.plate_omega**2 * p.plate_radius + 1.5 * abs(p.drive.plate_omega) / p.drive.ramp_time * p.plate_radius
     assert np.abs(ground_v - ground_v[0]).max() < a * spec.dt
-    assert spec.jar.at(1.5)[0] == pytest.approx(p.jar_spin)  # the ramp did run
+    assert spec.jar.at(1.5)[0] == pytest.approx(p.drive.jar_spin)  # the ramp did run
 
 
 def test_jacobi_energy_is_conserved_in_a_jar_fixed_to_the_plate():
@@ -110,7 +110,7 @@ def test_jacobi_energy_is_conserved_in_a_jar_fixed_to_the_plate():
     # shifts ½mv² by ≈ F v dt/2 (≈ 4e-4 J at 1 kN, 1 m/s).
     p = load_preset("presets/p4-cy-steel.toml", {"ratio": 1.0})
     spec = from_preset(p, 2.0)
-    om = p.plate_omega
+    om = p.drive.plate_omega
     spec = spec.replace(
         ball_ball=elastic(spec.ball_ball), ball_wall=elastic(spec.ball_wall), friction=FRICTIONLESS,
         plate=Ramp(0.0, om, om, 1.0), jar=Ramp(0.0, om, om, 1.0),
@@ -162,14 +162,14 @@ def test_lone_ball_rolls_in_place_as_a_pendulum_in_the_plate_frame(pair):
     sel = t > 2.0  # the 1 s start-up ramp, then friction brings the slip to rolling
     t = t[sel]
     x, v, s = (f[k][sel][:, 0] for k in ("position", "velocity", "spin"))
-    psi = np.array([Ramp(0, 0, p.plate_omega, p.ramp_time).at(tt)[2] - Ramp(0, 0, p.jar_spin, p.ramp_time).at(tt)[2]
+    psi = np.array([Ramp(0, 0, p.drive.plate_omega, p.drive.ramp_time).at(tt)[2] - Ramp(0, 0, p.drive.jar_spin, p.drive.ramp_time).at(tt)[2]
                     for tt in t])
     # angle of the ball about the jar centre, from the direction away from the plate axis
     theta = np.arctan2(-np.sin(psi) * x[:, 0] + np.cos(psi) * x[:, 1], np.cos(psi) * x[:, 0] + np.sin(psi) * x[:, 1])
     rho = np.hypot(x[:, 0], x[:, 1])
-    wall_speed = abs(p.jar_spin - p.plate_omega) * (rho + p.balls.radius)
+    wall_speed = abs(p.drive.jar_spin - p.drive.plate_omega) * (rho + p.balls.radius)
     contact = p.balls.radius * np.stack([x[:, 0] / rho, x[:, 1] / rho, 0 * rho], 1)
-    slip = np.linalg.norm(v + np.cross(s - [0.0, 0.0, p.jar_spin], contact), axis=1)
+    slip = np.linalg.norm(v + np.cross(s - [0.0, 0.0, p.drive.jar_spin], contact), axis=1)
     late = t > 3.0  # the wall chatter left by the start-up decays over ≈ 1 s, for any μ
     assert np.all(slip[late] < 0.01 * wall_speed[late])
     amplitude = np.abs(theta).max()
@@ -177,6 +177,6 @@ def test_lone_ball_rolls_in_place_as_a_pendulum_in_the_plate_frame(pair):
     up = np.flatnonzero((theta[:-1] < 0) & (theta[1:] >= 0))
     crossings = t[up] - theta[up] * (t[up + 1] - t[up]) / (theta[up + 1] - theta[up])
     period = np.diff(crossings).mean()
-    expected = 2 * np.pi / np.sqrt(5 * p.plate_omega**2 * p.plate_radius / (7 * rho.mean())) * (1 + amplitude**2 / 16)
+    expected = 2 * np.pi / np.sqrt(5 * p.drive.plate_omega**2 * p.plate_radius / (7 * rho.mean())) * (1 + amplitude**2 / 16)
     assert len(crossings) >= 8
     assert period == pytest.approx(expected, rel=0.002)

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from taimill.errors import ConfigError
-from taimill.model.params import RPM, ROOT, load_preset
+from taimill.model.drive import RPM
+from taimill.model.params import ROOT, load_preset
 from taimill.runs.live import LiveMill, auto_dt
 from taimill.store.sinks import MemorySink
 

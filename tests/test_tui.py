@@ -10,7 +10,8 @@ import pytest
 import rerun as rr
 
 from taimill.recording import scene
-from taimill.model.params import RPM, ROOT, load_preset
+from taimill.model.drive import RPM
+from taimill.model.params import ROOT, load_preset
 from taimill.runs.live import LiveMill
 from taimill.store.run import open_run
 from taimill.tui.app import MillApp

@@ -3,7 +3,6 @@ tables, so a store left by a killed run is analysed up to its commit markers."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -47,7 +46,7 @@ class RunAnalysis:
             "status": self.store.status if self.store.summary is not None else
             f"incomplete (status '{self.store.status}', no final summary: killed or still running)",
             "analysis_window": [self.t0, self.t1],
-            "ratio": g.ratio, "plate_rpm": g.plate.end * 30 / math.pi,
+            "ratio": g.ratio, "plate_rpm": g.drive.plate_rpm,
             "event_estimator": self.event.result(self.tau, g.volume, g.n_balls),
             "sampled_estimator": self.sampled if self.sampled is not None else {"error": self.sampled_error},
             "dissipated_power": self.energy["dissipated_power"],

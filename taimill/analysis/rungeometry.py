@@ -10,7 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from taimill.model.geometry import Profile, build_profile, profile_sdf
-from taimill.model.frame import Ramp  # NumPy twin, no taichi
+from taimill.model.drive import Drive
+from taimill.model.frame import Ramp
 
 SIDE, FLOOR, LID = -1, -2, -3  # body_j of wall events (sinks.EVENT_COLUMNS)
 
@@ -34,13 +35,13 @@ class RunGeometry:
         prims = tuple((kind, dict(p)) for kind, p in jar["primitives"])
         r = float(np.max(radii)) if len(radii) else float(balls["radius"])
         rho = float(balls["material"]["density"])
-        ramp = float(config.get("ramp_time", 1.0))
+        plate, spin = Drive.from_config(config).start_up()
         return cls(
             profile=build_profile(prims, float(jar.get("fillet", 0.0))), height=float(jar["height"]),
             ball_radius=r, ball_mass=rho * 4.0 / 3.0 * math.pi * r**3, n_balls=len(radii),
             plate_radius=float(config["plate_radius"]),
-            plate=Ramp(0.0, 0.0, float(config["plate_omega"]), ramp),
-            jar=Ramp(0.0, 0.0, float(config["jar_spin"]), ramp),
+            plate=plate,
+            jar=spin,
             analysis_start=float(config.get("analysis_start", 0.0)), duration=float(config.get("duration", math.inf)),
         )
 
@@ -55,7 +56,13 @@ class RunGeometry:
 
     @property
     def ratio(self) -> float:
-        return self.jar.end / self.plate.end if self.plate.end else math.nan
+        """K of the run's target speeds."""
+        return self.drive.ratio
+
+    @property
+    def drive(self) -> Drive:
+        """The run's target speeds."""
+        return Drive(self.plate.end, self.jar.end, self.plate.duration)
 
     def sdf(self, xy):
         """Signed distance to the side wall (m, > 0 inside) and its gradient."""

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import sys
 from pathlib import Path
 
@@ -60,7 +59,7 @@ def cmd_run(a) -> int:
         print(json.dumps(plain(summary)))
     else:
         print(f"{preset.source}: {preset.jar.name} jar, {preset.balls.count} balls, {preset.pair}, "
-              f"Ω = {preset.plate_omega * 30 / math.pi:g} rpm, K = {preset.ratio:g}")
+              f"Ω = {preset.drive.plate_rpm:g} rpm, K = {preset.drive.ratio:g}")
         print(summary_table(summary))
         if a.out:
             print(f"stored in {a.out}")

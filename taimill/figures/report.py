@@ -157,7 +157,7 @@ def draw_energy(ax, a: RunAnalysis):
 
 def _caption(a: RunAnalysis, what: str) -> str:
     g = a.geom
-    return (f"{what}. Run {a.store.group.store}; K = {g.ratio:.3g}, Ω = {g.plate.end * 30 / np.pi:.4g} rpm, "
+    return (f"{what}. Run {a.store.group.store}; K = {g.ratio:.3g}, Ω = {g.drive.plate_rpm:.4g} rpm, "
             f"{g.n_balls} balls; window {a.t0:g}–{a.t1:g} s; {_estimator(a)}.")
 
 

@@ -15,14 +15,15 @@ from pathlib import Path
 import numpy as np
 
 from taimill.model import geometry
+from taimill.model.drive import Drive
 from taimill.errors import ConfigError
+from taimill.model.ranges import RANGES
 from taimill.model import laws as laws_np
 
 PACKAGE = Path(__file__).resolve().parent.parent
 ROOT = PACKAGE.parent
 MATERIALS_FILE = PACKAGE / "data" / "materials.toml"
 JARS_DIR = ROOT / "jars"
-RPM = 2.0 * math.pi / 60.0
 GRAVITY = 9.81
 
 
@@ -119,8 +120,7 @@ class Preset:
     friction: Friction
     ball_ball: NormalLaw
     ball_wall: NormalLaw
-    plate_omega: float  #: rad/s, Ω
-    jar_spin: float  #: rad/s, absolute jar spin w = K Ω (= ω + Ω)
+    drive: Drive  #: Ω, the jar's spin and the start-up ramp
     plate_radius: float  #: m, R_p
     duration: float  #: s
     analysis_start: float  #: s
@@ -128,23 +128,16 @@ class Preset:
     dt_auto: bool
     seed: int
     trajectory_rate: float  #: Hz
-    ramp_time: float = 1.0  #: s, start-up ramp of Ω and w
     gravity: float = GRAVITY  #: m/s²
     initial_positions: np.ndarray | None = field(default=None, compare=False, repr=False)
 
-    @property
-    def ratio(self) -> float:
-        """K = ω/Ω + 1 = w/Ω (SPEC §2)."""
-        return self.jar_spin / self.plate_omega if self.plate_omega else math.nan
-
     def as_dict(self) -> dict:
-        """Resolved configuration as plain JSON-able data (for stores and summaries)."""
+        """Resolved configuration as plain JSON-able data (for stores and summaries);
+        the drive's speeds are top-level keys in every form (see Drive.as_dict)."""
         d = dataclasses.asdict(self)
+        del d["drive"]
         d["initial_positions"] = None if self.initial_positions is None else self.initial_positions.tolist()
-        d["ratio"] = self.ratio
-        d["plate_rpm"] = self.plate_omega / RPM
-        d["jar_rpm"] = (self.jar_spin - self.plate_omega) / RPM
-        return d
+        return d | self.drive.as_dict()
 
 
 # ------------------------------------------------------------------ checking
@@ -295,8 +288,8 @@ def _friction(t: "_Table", name: str, base: Friction | None = None) -> Friction:
     """μ_s, μ_d, v_s, v_d from table t, defaulting to `base` (preset overrides)."""
     required = (...,) * 4  # the sentinel `get` takes for "no default"
     d_mu_s, d_mu_d, d_vs, d_vd = required if base is None else (base.mu_s, base.mu_d, base.v_s * 1e3, base.v_d * 1e3)
-    mu_s = t.get("mu_s", d_mu_s, lo=0, hi=10)
-    mu_d = t.get("mu_d", d_mu_d, lo=0, hi=10)
+    mu_s = t.get("mu_s", d_mu_s, **RANGES["mu_s"].bounds)
+    mu_d = t.get("mu_d", d_mu_d, **RANGES["mu_d"].bounds)
     if mu_d > mu_s:
         raise ConfigError(t.where("mu_d"), t.key("mu_d"), mu_d, f"dynamic friction must not exceed static mu_s = {mu_s:g}; allowed range [0, {mu_s:g}]")
     v_s = t.get("v_s_mm_s", d_vs, lo=0, lo_open=True, hi=1e4) * 1e-3
@@ -460,7 +453,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     bt = t.table("balls")
     material = load_material(bt.get("material", kind=str), source)
     balls = Balls(
-        bt.get("count", kind=int, lo=1, hi=1_000_000),
+        bt.get("count", kind=int, **RANGES["balls.count"].bounds),
         material,
         bt.get("radius_mm", lo=0, lo_open=True, hi=0.5e3 * min(jar.radius, jar.height)) * 1e-3,
     )
@@ -479,13 +472,11 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     law = t.get("law", None, allowed=tuple(laws_np.LAWS))
     ball_ball, ball_wall = _contact_laws(contact, law, balls, jar, source)
 
-    plate_omega = t.get("plate_rpm", lo=-1000, hi=1000) * RPM
+    plate_rpm = t.get("plate_rpm", **RANGES["plate_rpm"].bounds)
     if t.has("ratio") and t.has("jar_rpm"):
         raise ConfigError(t.where("jar_rpm"), "jar_rpm", data["jar_rpm"], "give either ratio or jar_rpm, not both")
-    if t.has("jar_rpm"):
-        jar_spin = t.get("jar_rpm", lo=-3000, hi=3000) * RPM + plate_omega
-    else:
-        jar_spin = t.get("ratio", lo=-10, hi=10) * plate_omega
+    jar_key = "jar_rpm" if t.has("jar_rpm") else "ratio"
+    jar_speed = t.get(jar_key, **RANGES[jar_key].bounds)
     plate_radius = t.get("plate_radius_mm", 125.0, lo=0, hi=2000) * 1e-3
 
     duration = t.get("duration", lo=0, lo_open=True, hi=36000)
@@ -495,11 +486,12 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     analysis_start = t.get("analysis_start", 0.0, lo=0, hi=duration)
     if analysis_start >= duration:
         raise ConfigError(source, "analysis_start", analysis_start, f"must be below duration = {duration:g} s")
-    ramp_time = t.get("ramp_time", 1.0, lo=0, lo_open=True, hi=duration)
+    ramp_time = t.get("ramp_time", 1.0, **(RANGES["ramp_time"].bounds | {"hi": duration}))
+    drive = Drive.from_rpm(plate_rpm, **{jar_key: jar_speed}, ramp_time=ramp_time)
     gravity = t.get("gravity", GRAVITY, lo=0, hi=1000)
     seed = t.get("seed", 0, kind=int, lo=0, hi=2**63 - 1)
 
-    v_max = max_impact_speed(plate_omega, jar_spin, plate_radius, jar, gravity)
+    v_max = max_impact_speed(drive.plate_omega, drive.jar_spin, plate_radius, jar, gravity)
     dt_auto = laws_np.auto_dt((ball_ball, ball_wall), v_max)
     dt_raw = t.data.get("dt", "auto")
     t.used.add("dt")
@@ -521,8 +513,8 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
         init = load_positions(t.get("initial_positions", kind=str), path.parent, balls, jar, source)
     t.done()
     return Preset(
-        source, jar, balls, pair, friction, ball_ball, ball_wall, plate_omega, jar_spin, plate_radius,
-        duration, analysis_start, dt, is_auto, seed, rate, ramp_time, gravity, init,
+        source, jar, balls, pair, friction, ball_ball, ball_wall, drive, plate_radius,
+        duration, analysis_start, dt, is_auto, seed, rate, gravity, init,
     )
 
 

@@ -32,6 +32,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from taimill.model.drive import Drive
 from taimill.model.geometry import build_profile
 from taimill.recording.stats import hist_edges
 
@@ -89,7 +90,7 @@ def jar_outline(config: dict) -> np.ndarray:
 
 def speed_scale(config: dict, radius: float) -> float:
     """V (m/s), see the module doc; `radius` the jar's bounding radius (m)."""
-    relative = abs(config["plate_omega"] - config["jar_spin"]) * radius
+    relative = abs(Drive.from_config(config).relative_spin) * radius
     return max(relative, math.sqrt(4.0 * config["gravity"] * radius))
 
 
@@ -153,13 +154,12 @@ def info_text(config: dict, speed_ref: float, se_ref: float, summary: dict | Non
               status: str | None = None) -> str:
     """Markdown: the run's setting and colour scales (m/s, J), and its summary once finished."""
     jar, balls = config["jar"], config["balls"]
-    rpm = config["plate_omega"] * 30 / math.pi
-    ratio = config["jar_spin"] / config["plate_omega"] if config["plate_omega"] else math.nan
+    drive = Drive.from_config(config)
     lines = [
         f"# {config.get('source', 'taimill run')}",
         f"- jar **{jar['name']}**, {balls['count']} × {balls['material']['name']} balls of "
         f"{balls['radius'] * 1e3:g} mm, pair **{config['pair']}**",
-        f"- Ω = {rpm:g} rpm, K = {ratio:.3g}, dt = {config['dt'] * 1e6:.4g} µs, duration {config.get('duration', '?')} s",
+        f"- Ω = {drive.plate_rpm:g} rpm, K = {drive.ratio:.3g}, dt = {config['dt'] * 1e6:.4g} µs, duration {config.get('duration', '?')} s",
         f"- balls coloured by speed in the jar frame ({COLORMAPS['speed']}, 0 … {speed_ref:.2f} m/s)",
         f"- impacts by stress energy (normal {COLORMAPS['normal']}, tangential {COLORMAPS['tangential']}; "
         f"{SE_DECADES:g} decades up to {se_ref:.3g} J), shown for {IMPACT_LIFE * 1e3:g} ms",

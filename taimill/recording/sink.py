@@ -11,7 +11,7 @@ arrives. Histograms of onset speeds cover the periods (k-1)·P … k·P, P =
 `histogram_every`, and a last partial period at the end.
 
 The sink may start mid-run (the TUI records on demand): windows then begin at the
-first recorded frame. The lab view replays the preset's drive (Ramp of frame_np.py);
+first recorded frame. The lab view replays the preset's drive (taimill.model.drive);
 live speed changes made in the TUI are not in the config and so not in that view.
 """
 
@@ -25,7 +25,7 @@ import rerun as rr
 
 from taimill.recording import scene
 from taimill.recording import stats
-from taimill.model.frame import Ramp
+from taimill.model.drive import Drive
 
 BATCH_SECONDS = 1.0  # simulated seconds of frames sent per batch
 BATCH_POINTS = 2_000_000  # … or fewer frames once this many ball positions wait
@@ -70,8 +70,7 @@ class RerunSink:
         self.speed_ref = scene.speed_scale(config, jar_radius)
         self.se_ref = 0.5 * scene.ball_mass(config) * self.speed_ref**2
         self.luts = {k: scene.lut(name) for k, name in scene.COLORMAPS.items()}
-        self.plate = Ramp(0.0, 0.0, config["plate_omega"], config["ramp_time"])
-        self.jar = Ramp(0.0, 0.0, config["jar_spin"], config["ramp_time"])
+        self.plate, self.jar = Drive.from_config(config).start_up()
         self.rec = rr.RecordingStream("taimill")
         self.rec.save(self.path, default_blueprint=scene.blueprint(self.lab_frame))
         self.rec.send_recording_name(f"{config['jar']['name']} {config['pair']} {self.path.stem}")

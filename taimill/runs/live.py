@@ -34,11 +34,13 @@ import time
 import numpy as np
 
 from taimill.errors import ConfigError, SimulationUnstable
-from taimill.model.params import RPM, Preset, load_friction, load_preset, max_impact_speed
 from taimill.model import laws as laws_np
+from taimill.model.drive import Drive
 from taimill.model.frame import Ramp
-from taimill.physics.mill import set_friction
+from taimill.model.params import Preset, load_friction, load_preset, max_impact_speed
+from taimill.model.ranges import RANGES
 from taimill.model.spec import from_preset
+from taimill.physics.mill import set_friction
 from taimill.physics.runner import Runner
 from taimill.store.sinks import FanOut
 
@@ -46,26 +48,16 @@ SOURCE = "TUI"  # names live input in ConfigError messages
 FOREVER = 2**62  # step target of a live mill: it runs until stopped
 CHUNK_SECONDS = 0.01  # wall s per kernel launch (NOTES.md: worst UI gap 132 ms at 10 ms)
 
-# Allowed ranges of live values: the preset's (params.load_preset), except Ω ≥ 0 (a
-# negative Ω is the mirror image of a positive one) and ball counts a terminal can draw.
-LIMITS = {
-    "plate_rpm": (0.0, 1000.0),
-    "ratio": (-10.0, 10.0),
-    "jar_rpm": (-3000.0, 3000.0),
-    "mu_s": (0.0, 10.0),
-    "mu_d": (0.0, 10.0),
-    "ramp_time": (0.01, 60.0),
-    "balls": (1, 2000),
-}
-UNITS = {"plate_rpm": " rpm", "jar_rpm": " rpm", "ramp_time": " s"}
+# Live value -> its entry in the table of allowed ranges (taimill.model.ranges), which
+# narrows some of them for a running mill.
+LIVE_KEYS = {"plate_rpm": "plate_rpm", "ratio": "ratio", "jar_rpm": "jar_rpm", "mu_s": "mu_s", "mu_d": "mu_d",
+             "ramp_time": "ramp_time", "balls": "balls.count"}
+LIMITS = {key: RANGES[name].live_bounds for key, name in LIVE_KEYS.items()}  #: key -> [lo, hi]
 
 
 def check(key: str, value) -> float:
-    """value if it lies in LIMITS[key], else ConfigError naming key, value and range."""
-    lo, hi = LIMITS[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not lo <= value <= hi:
-        raise ConfigError(SOURCE, key, value, f"allowed range [{lo:g}, {hi:g}]{UNITS.get(key, '')}")
-    return value
+    """value if it lies in the live range of key, else ConfigError naming key, value and range."""
+    return RANGES[LIVE_KEYS[key]].check_live(SOURCE, key, value)
 
 
 def wrap(angle: float) -> float:
@@ -137,19 +129,24 @@ class LiveMill:
         return self.spec.radius
 
     @property
+    def target(self) -> Drive:
+        """The speeds the mill runs at or ramps to."""
+        return self.preset.drive
+
+    @property
     def plate_rpm(self) -> float:
         """Target plate speed Ω, rpm."""
-        return self.plate.end / RPM
+        return self.target.plate_rpm
 
     @property
     def jar_rpm(self) -> float:
         """Target jar speed relative to the plate, ω = w - Ω, rpm."""
-        return (self.jar.end - self.plate.end) / RPM
+        return self.target.jar_rpm
 
     @property
     def ratio(self) -> float:
         """Target K = w/Ω (nan for Ω = 0)."""
-        return self.jar.end / self.plate.end if self.plate.end else math.nan
+        return self.target.ratio
 
     @property
     def friction(self):
@@ -271,16 +268,9 @@ class LiveMill:
         the preset's start-up ramp."""
         if ratio is not None and jar_rpm is not None:
             raise ConfigError(SOURCE, "jar_rpm", jar_rpm, "give either ratio or jar_rpm, not both")
-        om = check("plate_rpm", plate_rpm) * RPM if plate_rpm is not None else self.plate.end
-        if ratio is not None:
-            w = check("ratio", ratio) * om
-        elif jar_rpm is not None:
-            w = check("jar_rpm", jar_rpm) * RPM + om
-        elif self.plate.end:
-            w = self.jar.end / self.plate.end * om
-        else:
-            w = self.jar.end - self.plate.end + om
-        T = check("ramp_time", ramp_time) if ramp_time is not None else self.preset.ramp_time
+        given = {"plate_rpm": plate_rpm, "ratio": ratio, "jar_rpm": jar_rpm, "ramp_time": ramp_time}
+        new = self.target.retarget(**{k: check(k, v) for k, v in given.items() if v is not None})
+        om, w, T = new.plate_omega, new.jar_spin, new.ramp_time
         dt = auto_dt(self.preset, self._peak(self.plate, om), self._peak(self.jar, w), self.dt_fixed)
         with self._locked():
             t = self.time
@@ -290,7 +280,7 @@ class LiveMill:
             self.F.plate_ramp[0] = self.plate.as_tuple()
             self.F.jar_ramp[0] = self.jar.as_tuple()
             self.runner.specs[0] = self.spec.replace(plate=self.plate, jar=self.jar)
-            self.preset = dataclasses.replace(self.preset, plate_omega=om, jar_spin=w, ramp_time=T)
+            self.preset = dataclasses.replace(self.preset, drive=new)
             self._set_dt(dt)
             self.changes.append({"time": t, "plate_rpm": self.plate_rpm, "ratio": self.ratio, "jar_rpm": self.jar_rpm,
                                  "ramp_time": T, "dt": self.dt})
@@ -340,7 +330,7 @@ class LiveMill:
         """Back to t = 0: the seeded placement, ramping from rest to the current targets."""
         with self._locked():
             p = self.preset
-            self._start(dataclasses.replace(p, dt=auto_dt(p, p.plate_omega, p.jar_spin, self.dt_fixed)))
+            self._start(dataclasses.replace(p, dt=auto_dt(p, p.drive.plate_omega, p.drive.jar_spin, self.dt_fixed)))
 
     def rebuilt(self, *, jar: str | None = None, balls: int | None = None) -> Preset:
         """The preset of a new jar (name in jars/ or path) and/or ball count with the
@@ -348,14 +338,13 @@ class LiveMill:
         p = self.preset
         if balls is not None:
             check("balls", balls)
-        over = {k: v for k, v in self.overrides.items() if k != "ratio"}
-        over.update({"jar": jar or over.get("jar"), "balls.count": balls or p.balls.count,
-                     "plate_rpm": p.plate_omega / RPM, "jar_rpm": (p.jar_spin - p.plate_omega) / RPM,
-                     "ramp_time": p.ramp_time})
+        over = {**self.overrides, "jar": jar or self.overrides.get("jar"), "balls.count": balls or p.balls.count}
         try:
             new = load_preset(p.source, over)
         except ConfigError as err:
             raise (ConfigError(SOURCE, err.key, err.value, err.allowed) if err.source == "command line" else err) from None
+        d = p.drive
+        new = dataclasses.replace(new, drive=d, dt=auto_dt(new, d.plate_omega, d.jar_spin, self.dt_fixed))
         if load_friction(new.pair, SOURCE)[1] == load_friction(p.pair, SOURCE)[1]:
             new = dataclasses.replace(new, friction=p.friction, pair=p.pair)
         return new

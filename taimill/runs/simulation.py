@@ -5,7 +5,6 @@
 
 from __future__ import annotations
 
-import math
 import time
 
 from taimill.analysis.summary import SummarySink
@@ -29,7 +28,7 @@ def point_result(preset, spec, summary, runner, b, wall, status) -> dict:
     """SPEC §9 summary of mill b of `runner`; wall in s."""
     result = summary.result(runner.time(b), wall)
     result.update(dt=spec.dt, steps=int(runner.engine.F.step[b]), status=status,
-                  ratio=preset.ratio, plate_rpm=preset.plate_omega * 30 / math.pi)
+                  ratio=preset.drive.ratio, plate_rpm=preset.drive.plate_rpm)
     return result
 
 

@@ -133,8 +133,8 @@ def plan(req: Request, ratios_for=None) -> list[dict]:
 
 def point_values(p, replica: int) -> dict:
     """The table's description of a resolved preset (SI radii, rpm)."""
-    return {"jar": p.jar.name, "balls": p.balls.count, "pair": p.pair, "plate_rpm": round(p.plate_omega * 30 / math.pi, 9),
-            "ratio": round(p.ratio, 10), "seed": p.seed, "replica": replica, "plate_radius": p.plate_radius,
+    return {"jar": p.jar.name, "balls": p.balls.count, "pair": p.pair, "plate_rpm": round(p.drive.plate_rpm, 9),
+            "ratio": round(p.drive.ratio, 10), "seed": p.seed, "replica": replica, "plate_radius": p.plate_radius,
             "jar_radius": p.jar.radius, "ball_radius": p.balls.radius, "duration": p.duration}
 
 

@@ -118,7 +118,7 @@ class MillApp(App):
     def settings(self) -> dict:
         """The mill's current settings, as the controls show them."""
         m = self.mill
-        return {"plate_rpm": m.plate_rpm, "ratio": m.ratio, "jar_rpm": m.jar_rpm, "ramp_time": m.preset.ramp_time,
+        return {"plate_rpm": m.plate_rpm, "ratio": m.ratio, "jar_rpm": m.jar_rpm, "ramp_time": m.target.ramp_time,
                 "mu_s": m.friction.mu_s, "mu_d": m.friction.mu_d, "balls": m.n_balls, "pair": m.preset.pair,
                 "jar": m.preset.jar.name}
 

@@ -10,7 +10,7 @@ import numpy as np
 from textual.widgets import Static
 
 from taimill.schema import SUMMARY_ROWS
-from taimill.model.params import RPM
+from taimill.model.drive import RPM
 
 # (summary key, label, unit, scale): the run summary's figures that fit the panel, with
 # short labels; units and scales are those `taimill run` prints (taimill.schema.SUMMARY_ROWS)

@@ -50,9 +50,12 @@ ENERGY_COLUMNS: dict[str, tuple[str, str, str]] = {
     "dissipated": ("f8", "J", "energy dissipated by all contacts since t = 0"),
 }
 
-# Event columns the host derives from others after each launch (the kernel does not
-# write them): name -> (the columns it is computed from).
-DERIVED_EVENT_COLUMNS = {"se_n": ("m_eff", "un"), "se_t": ("m_eff", "ut")}
+# Event columns the host derives from the kernel's columns after each launch (the
+# kernel does not write them): name -> function of the other columns (arrays).
+DERIVED_EVENT_COLUMNS = {
+    "se_n": lambda c: 0.5 * c["m_eff"] * c["un"] ** 2,
+    "se_t": lambda c: 0.5 * c["m_eff"] * c["ut"] ** 2,
+}
 
 # ---------------------------------------------------------------- run summary
 # (key in the summary, label, unit, scale)

@@ -77,13 +77,25 @@ def emit_event(F: ti.template(), b, i, k, t):
     if k >= S.WALLS:
         j = F.slot_partner[b, i, k]
         body_j, kind, m_eff = ti.cast(j, ti.f64), 0.0, mi * F.m[b, j] / (mi + F.m[b, j])
+    row = ti.Vector.zero(ti.f64, S.NCOL)  # the schema's event columns, by name
+    row[S.EV["t_start"]] = q[S.SLOT_T0]
+    row[S.EV["duration"]] = t - q[S.SLOT_T0]
+    row[S.EV["body_i"]] = ti.cast(i, ti.f64)
+    row[S.EV["body_j"]] = body_j
+    row[S.EV["kind"]] = kind
+    row[S.EV["x"]] = q[S.SLOT_PX]
+    row[S.EV["y"]] = q[S.SLOT_PY]
+    row[S.EV["z"]] = q[S.SLOT_PZ]
+    row[S.EV["un"]] = q[S.SLOT_UN]
+    row[S.EV["ut"]] = q[S.SLOT_UT]
+    row[S.EV["m_eff"]] = m_eff
+    row[S.EV["peak_force"]] = q[S.SLOT_FPEAK]
+    row[S.EV["peak_penetration"]] = q[S.SLOT_UPEAK]
+    row[S.EV["dissipated_normal"]] = q[S.SLOT_DN]
+    row[S.EV["dissipated_friction"]] = q[S.SLOT_DT]
     e = ti.atomic_add(F.n_events[b], 1)
     if e < F.event_capacity:
-        F.events[b, e] = ti.Vector([
-            q[S.SLOT_T0], t - q[S.SLOT_T0], ti.cast(i, ti.f64), body_j, kind,
-            q[S.SLOT_PX], q[S.SLOT_PY], q[S.SLOT_PZ], q[S.SLOT_UN], q[S.SLOT_UT], m_eff,
-            q[S.SLOT_FPEAK], q[S.SLOT_UPEAK], q[S.SLOT_DN], q[S.SLOT_DT],
-        ])
+        F.events[b, e] = row
 
 
 @ti.func

@@ -44,7 +44,13 @@ def snapshot(F: ti.template(), b, t, dr):
         el += F.elastic[b, i]
         dw += F.drive_work[b, i]
         ds += F.dissipated[b, i]
-    F.frame_ledger[b, k] = ti.Vector([ke, pe, el, dw, ds])
+    row = ti.Vector.zero(ti.f64, len(S.LEDGER_FIELDS))  # the schema's ledger columns, by name
+    row[S.LEDGER["kinetic"]] = ke
+    row[S.LEDGER["potential"]] = pe
+    row[S.LEDGER["elastic"]] = el
+    row[S.LEDGER["drive_work"]] = dw
+    row[S.LEDGER["dissipated"]] = ds
+    F.frame_ledger[b, k] = row
     F.n_frames[b] = k + 1
 
 

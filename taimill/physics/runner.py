@@ -21,7 +21,7 @@ from taimill.physics import state as S
 from taimill.physics.engine import Engine
 from taimill.physics.mill import write_mill
 from taimill.model.spec import MillSpec, grid_cells_for
-from taimill.schema import EVENT_COLUMNS
+from taimill.schema import DERIVED_EVENT_COLUMNS, EVENT_COLUMNS
 
 _initialised = False
 # balls: beyond this one mill runs in parallel mode. Measured crossover on the 2-core
@@ -69,15 +69,9 @@ def events_table(raw: np.ndarray) -> dict[str, np.ndarray]:
     end time, then bodies, so every launch mode gives the same table."""
     cols = dict(zip(S.EVENT_FIELDS, raw.T))
     order = np.lexsort((cols["body_j"], cols["body_i"], cols["t_start"] + cols["duration"]))
-    out = {}
-    for name, (dtype, _, _) in EVENT_COLUMNS.items():
-        if name == "se_n":
-            out[name] = 0.5 * cols["m_eff"][order] * cols["un"][order] ** 2
-        elif name == "se_t":
-            out[name] = 0.5 * cols["m_eff"][order] * cols["ut"][order] ** 2
-        else:
-            out[name] = cols[name][order].astype(dtype)
-    return out
+    cols = {name: c[order] for name, c in cols.items()}
+    return {name: DERIVED_EVENT_COLUMNS[name](cols) if name in DERIVED_EVENT_COLUMNS else cols[name].astype(dtype)
+            for name, (dtype, _, _) in EVENT_COLUMNS.items()}
 
 
 def status_message(code: int, ball: int, t: float, dt: float) -> str:

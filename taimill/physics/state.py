@@ -25,9 +25,11 @@ SLOT_DATA = 10
 # those the launcher derives after each launch (the stress energies).
 EVENT_FIELDS = tuple(k for k in EVENT_COLUMNS if k not in DERIVED_EVENT_COLUMNS)
 NCOL = len(EVENT_FIELDS)
+EV = {name: c for c, name in enumerate(EVENT_FIELDS)}  #: column of the kernel's event record
 
 # Energy ledger snapshot columns, taken with every frame (the schema's ENERGY_COLUMNS but time).
 LEDGER_FIELDS = tuple(k for k in ENERGY_COLUMNS if k != "time")
+LEDGER = {name: c for c, name in enumerate(LEDGER_FIELDS)}  #: column of the kernel's ledger record
 
 # Verlet list length per ball (equal spheres within a skin of 0.1 r: at most ~14).
 NEIGHBOURS = 32

@@ -26,13 +26,14 @@ import rerun as rr
 from taimill.recording import scene
 from taimill.recording import stats
 from taimill.model.drive import Drive
+from taimill.schema import ENERGY_COLUMNS
 
 BATCH_SECONDS = 1.0  # simulated seconds of frames sent per batch
 BATCH_POINTS = 2_000_000  # … or fewer frames once this many ball positions wait
 STAT_LAG = 0.1  # s a window waits for contacts still open at its end (2 launches)
 STAT_WINDOW = 1.0  # s, sliding window of the scalar series
 EVENT_KEYS = ("t_start", "kind", "x", "y", "z", "un", "ut", "se_n", "se_t")
-LEDGER_KEYS = ("time", "kinetic", "potential", "elastic", "drive_work", "dissipated")
+LEDGER_KEYS = tuple(ENERGY_COLUMNS)
 
 
 def _cat(blocks: list[dict], keys) -> dict[str, np.ndarray]:

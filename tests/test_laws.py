@@ -34,6 +34,18 @@ def test_damping_is_read_as_newton_second_per_mm():
     assert p.ball_ball.d == pytest.approx(0.211e-3)
 
 
+def test_registry_ids_are_indices():
+    # The kernels receive the id and the Taichi dispatcher tests it against REGISTRY[i].
+    assert [law.id for law in laws_np.REGISTRY] == list(range(len(laws_np.REGISTRY)))
+    assert [laws_np.law_by_name(name).id for name in laws_np.NAMES] == [law.id for law in laws_np.REGISTRY]
+
+
+def test_law_table_in_the_docstring_matches_the_registry():
+    rows = [[c.strip() for c in line.split("|")[1:4]] for line in laws_np.__doc__.splitlines()
+            if line.startswith("| ") and not line.startswith("| law ")]
+    assert [(name, int(i), float(n)) for name, i, n in rows] == [(law.name, law.id, law.n) for law in laws_np.REGISTRY]
+
+
 @ti.kernel
 def _eval_normal(law: ti.i32, u: ti.types.ndarray(), ud: ti.types.ndarray(), k: ti.f64, n: ti.f64, c: ti.f64,
                  d: ti.f64, m: ti.f64, out: ti.types.ndarray()):
@@ -45,7 +57,7 @@ def _eval_normal(law: ti.i32, u: ti.types.ndarray(), ud: ti.types.ndarray(), k: 
 
 
 @pytest.mark.usefixtures("taichi")
-@pytest.mark.parametrize("law", list(laws_np.LAWS))
+@pytest.mark.parametrize("law", laws_np.NAMES)
 def test_taichi_normal_law_equals_numpy_twin(law):
     # Same formula, same double precision: agreement to 1e-12 relative.
     _, _, _, bw, _ = pair_contact("steel-steel", law=law)
@@ -105,8 +117,8 @@ def test_calibrated_laws_deliver_their_restitution_at_every_speed(law, e):
 def test_closed_form_damping_overshoots_restitution_with_the_clamp():
     # SPEC §3: with F ≥ 0 the closed-form β(e) rebounds higher than asked (0.516 → ≈0.56).
     _, _, _, bw, _ = pair_contact("steel-steel", law="hertz-mindlin")
-    c0 = laws_np.closed_form_damping(4, 0.516, bw.k, bw.n, bw.m_eff, bw.u_ref)
-    got = laws_np.simulate_impact(4, bw.k, bw.n, c0, bw.d, bw.m_eff, 3.309)["e"][0]
+    c0 = laws_np.closed_form_damping(bw.law_id, 0.516, bw.k, bw.n, bw.m_eff, bw.u_ref)
+    got = laws_np.simulate_impact(bw.law_id, bw.k, bw.n, c0, bw.d, bw.m_eff, 3.309)["e"][0]
     assert 0.54 < got < 0.58
 
 

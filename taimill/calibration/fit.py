@@ -92,10 +92,10 @@ def parameter(name: str | None, law, bb, ball, wall_material: str, data: DropDat
     compenetration" the thesis started from; c_max from eq 2.16 with k* of eq 2.17 and
     the mean measured e, divided by step(u_max/d), the fraction of c_max the IMPACT law
     reaches at that overlap (eq 2.16 assumes full damping); e = the mean measured e."""
-    name = name or ("d" if law.law == "adams-impact" else "e")
-    adams = law.law == "adams-impact"
-    if name not in ("d", "c_max", "e") or (name == "e") == adams:
-        allowed = "d or c_max (adams-impact)" if adams else f"e (law {law.law} takes its damping from e)"
+    from_e = law.contact_law.calibrated
+    name = name or ("e" if from_e else "d")
+    if name not in ("d", "c_max", "e") or (name == "e") != from_e:
+        allowed = f"e (law {law.law} takes its damping from e)" if from_e else f"d or c_max ({law.law})"
         raise ConfigError("command line", "--param", name, f"must be {allowed}")
     v = math.sqrt(2.0 * GRAVITY * float(np.median(data.h0)))
     e_mean = float(np.clip(data.e.mean(), *E_RANGE))
@@ -108,8 +108,7 @@ def parameter(name: str | None, law, bb, ball, wall_material: str, data: DropDat
         wall = load_material(wall_material)
         e_eff = 1.0 / (1.0 / ball.material.youngs_modulus + 1.0 / wall.youngs_modulus)  # eq 2.17
         k_star = laws_np.di_maio_stiffness(law.m_eff, v, e_eff, ball.radius)
-        zeta = -math.log(e_mean) / math.sqrt(math.log(e_mean) ** 2 + math.pi**2)  # eq 2.15
-        c_216 = 2.0 * zeta * math.sqrt(law.m_eff * k_star)  # eq 2.16, N·s/m
+        c_216 = 2.0 * laws_np.damping_ratio(e_mean) * math.sqrt(law.m_eff * k_star)  # eq 2.16, N·s/m
         u_max = ((law.n + 1) * law.m_eff * v * v / (2 * law.k)) ** (1 / (law.n + 1))
         start = c_216 / float(laws_np.smoothstep(u_max / law.d)) * 1e-3  # the law damps with c_max·step(u/d) ≤ c_max
         return Parameter("c_max", "c_max_Ns_per_mm", "N·s/mm", True, start / SPAN, start * SPAN, start,

@@ -9,10 +9,6 @@ import math
 
 from taimill.model.params import NormalLaw, pair_contact
 
-# Parameters of the impact function varied in Fig 2.5; the other laws have no d.
-VARIED = {"adams-impact": ("k", "n", "c", "d")}
-VARIED_DEFAULT = ("k", "n", "c")
-
 
 def eqs_2_3_2_4(v1n: float, v2n: float, m1: float, m2: float, e: float):
     """Final normal velocities of a frictionless impact of bodies 1 and 2 (thesis eqs
@@ -81,7 +77,7 @@ def vary(law: NormalLaw, name: str, factor: float) -> NormalLaw:
 def sensitivity(pair: str, h0: float, *, law: str | None = None, target: str = "plate", change: float = 0.5,
                 radius: float | None = None) -> dict:
     """Thesis Fig 2.5 (bottom right): the drop test from h0 (m) with each parameter of
-    the normal law (k, n, c and, for adams-impact, d) scaled by 1 ± change in turn.
+    the normal law (k, n, c and d where its force depends on d) scaled by 1 ± change in turn.
     Rows: parameter, factor, value (SI), e, rebound height h* (m), its change from the
     reference h* (m and relative), and the thesis' Δh = (h* - h0)/h0."""
     from taimill.calibration.runs import Drop, run_drops
@@ -89,7 +85,7 @@ def sensitivity(pair: str, h0: float, *, law: str | None = None, target: str = "
     ball, jar, bb, bw, fr = pair_contact(pair, radius, law)
     base = bw if target == "plate" else bb
     variants = [("reference", 1.0, base)] + [
-        (name, f, vary(base, name, f)) for name in VARIED.get(base.law, VARIED_DEFAULT) for f in (1 - change, 1 + change)]
+        (name, f, vary(base, name, f)) for name in base.contact_law.parameters for f in (1 - change, 1 + change)]
     drops = [Drop(ball, jar, bb if target == "plate" else v, v if target == "plate" else bw, fr, h0, target)
              for _, _, v in variants]
     results = run_drops(drops)

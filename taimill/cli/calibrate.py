@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from taimill.cli.common import plain as _plain  # JSON-safe values, one definition
+from taimill.cli.common import LAW_HELP, plain as _plain  # JSON-safe values, one definition
 
 EXIT_NO_MATCH = 1
 MAX_H0_MM = 10_000.0
@@ -176,7 +176,7 @@ def register(sub):
 
     def common(p, figure_help):
         p.add_argument("--pair", required=True, help="friction/contact pair, e.g. steel-steel, or a pair file NAME.toml")
-        p.add_argument("--law", help="normal law (default: the pair's), e.g. adams-impact, hertz-mindlin")
+        p.add_argument("--law", help=f"{LAW_HELP}; default: the pair's")
         p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
         p.add_argument("--figure", metavar="FILE", help=f"draw {figure_help} (.png or .svg)")
 
@@ -190,7 +190,7 @@ def register(sub):
     f = csub.add_parser("fit", help="fit d (or c_max; e for other laws) to measured drop tests, write a pair file")
     common(f, "measured and fitted e(h0) and the residuals")
     f.add_argument("--data", required=True, help="CSV with h0_mm and rebound_mm or e (taimill/data/zirconia_drop_table2_1.csv)")
-    f.add_argument("--param", choices=("d", "c_max", "e"), help="fitted parameter (default d for adams-impact, e otherwise)")
+    f.add_argument("--param", choices=("d", "c_max", "e"), help="fitted parameter (default: e for laws whose damping comes from e, d otherwise)")
     f.add_argument("--scatter", type=float, default=0.02, help="1 s.d. of a measured e where the data give none (default 0.02)")
     f.add_argument("--out", help="pair file to write (NAME.toml), usable as pair = \"NAME.toml\" in presets")
     f.add_argument("--name", help="pair name inside the file (default PAIR-fit)")

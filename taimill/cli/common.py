@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import math
 
+from taimill.model.laws import NAMES
 from taimill.schema import SUMMARY_ROWS
 
 EXIT_BAD_INPUT, EXIT_UNSTABLE = 2, 3
+LAW_HELP = f"normal contact law ({', '.join(NAMES)})"
 
 
 def dt_option(text: str | None):
@@ -42,7 +44,7 @@ def add_overrides(p):
     g.add_argument("--duration", type=float, help="simulated seconds (a preset's analysis start that no longer fits becomes duration/6)")
     g.add_argument("--analysis-start", type=float, help="start of the analysis window (s)")
     g.add_argument("--dt", help="time step in s, or 'auto'")
-    g.add_argument("--law", help="normal contact law (adams-impact, kelvin-voigt, hertz-damper, hunt-crossley, hertz-mindlin)")
+    g.add_argument("--law", help=LAW_HELP)
 
 
 def _fmt(value, scale):

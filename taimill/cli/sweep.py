@@ -9,6 +9,7 @@ import math
 import re
 import sys
 
+from taimill.cli.common import LAW_HELP
 from taimill.errors import ConfigError
 
 REFINE_METRICS = ("mean_se", "mean_se_normal", "mean_se_tangential", "impact_power", "impact_power_normal",
@@ -43,7 +44,7 @@ def register(subparsers) -> None:
     o.add_argument("--duration", type=float, help="simulated seconds per point")
     o.add_argument("--analysis-start", type=float, help="start of the analysis window (s)")
     o.add_argument("--dt", help="time step in s, or 'auto' (per point)")
-    o.add_argument("--law", help="normal contact law")
+    o.add_argument("--law", help=LAW_HELP)
     x = s.add_argument_group("execution")
     x.add_argument("--workers", type=int, help="local worker processes (default: one per core)")
     x.add_argument("--batch", type=int, help="mills per kernel, B (default: 1 for small sweeps, see sweep.auto_batch)")

@@ -19,17 +19,21 @@ with a law-specific damping shape g:
 simulated head-on impact at u_ref has exactly the asked restitution e *with* the
 F ≥ 0 clamp (the closed forms assume an attractive end of contact and overshoot e).
 kelvin-voigt and hertz-mindlin are scale-free, so their e then holds at every speed.
+
+REGISTRY holds one `ContactLaw` per row of the table, in id order: the id is the
+integer the kernels receive. Adding a law touches its REGISTRY entry here (name, n,
+NumPy g, first guess of c, how c and k are derived) and its Taichi g in
+`taimill.physics.laws.SHAPES`; tests hold this table, REGISTRY and SHAPES in step.
 """
 
 from __future__ import annotations
 
 import functools
 import math
+from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
-
-LAWS = {"adams-impact": 0, "kelvin-voigt": 1, "hertz-damper": 2, "hunt-crossley": 3, "hertz-mindlin": 4}
-CONSTANT_E_LAWS = ("kelvin-voigt", "hertz-mindlin")
 
 # Contact resolution of the automatic time step: steps per contact at the fastest
 # expected impact (typical impacts, 10x slower, get ~1.6x more). Measured on the CY
@@ -59,17 +63,92 @@ def smoothstep(s):
     return s * s * (3.0 - 2.0 * s)
 
 
+# ------------------------------------------------------------------ registry
+def _step_shape(u, k, n, d, m_eff):
+    """adams-impact: step(u/d), eqs 2.20 / 3.2."""
+    return smoothstep(u / d)
+
+
+def _unit_shape(u, k, n, d, m_eff):
+    """kelvin-voigt, hertz-damper: 1 (eqs 2.13, 2.18)."""
+    return np.ones_like(u)
+
+
+def _hunt_crossley_shape(u, k, n, d, m_eff):
+    """hunt-crossley: k uⁿ, eq 2.19."""
+    return k * u**n
+
+
+def _mindlin_shape(u, k, n, d, m_eff):
+    """hertz-mindlin: √(m_e S_n) with S_n = n k u^(n-1) (Tsuji 1992)."""
+    return np.sqrt(m_eff * n * k) * u ** (0.5 * (n - 1.0))
+
+
+def damping_ratio(e):
+    """ζ of a linear oscillator rebounding with restitution e, eq 2.15."""
+    ln_e = math.log(e)
+    return -ln_e / math.sqrt(ln_e**2 + math.pi**2)
+
+
+def _eq_2_16_damping(e, k, n, m_eff, u_ref):
+    """c = 2ζ√(m_e k), eq 2.16; a Hertz law uses its tangent stiffness n k u_max^(n-1)
+    at the peak overlap u_max of an impact at u_ref (m/s)."""
+    k_lin = k if n == 1.0 else (n * k * ((n + 1) * m_eff * u_ref**2 / (2 * k)) ** ((n - 1) / (n + 1)))
+    return 2.0 * damping_ratio(e) * math.sqrt(m_eff * k_lin)
+
+
+def _hunt_crossley_damping(e, k, n, m_eff, u_ref):
+    """λ/k = 3(1-e)/(2 u_ref), Hunt & Crossley 1975 (s/m)."""
+    return 1.5 * (1.0 - e) / u_ref
+
+
+def _tsuji_damping(e, k, n, m_eff, u_ref):
+    """2√(5/6)·β with β = ζ of eq 2.15 (Tsuji 1992 / EDEM), dimensionless."""
+    return 2.0 * math.sqrt(5.0 / 6.0) * damping_ratio(e)
+
+
+@dataclass(frozen=True)
+class ContactLaw:
+    """One normal law F = max(0, k uⁿ + c g(u) u̇): a row of the module's table."""
+
+    name: str
+    id: int  #: its index in REGISTRY, the integer the kernels receive
+    n: float  #: exponent of the spring
+    shape: Callable  #: g(u, k, n, d, m_eff), NumPy
+    first_guess: Callable  #: closed-form c(e, k, n, m_eff, u_ref), ignoring the F ≥ 0 clamp
+    calibrated: bool = True  #: c calibrated to e at u_ref; False: c = c_max of the contact set
+    constant_e: bool = False  #: restitution independent of the impact speed
+    parameters: tuple = ("k", "n", "c")  #: the NormalLaw fields its force depends on
+
+    def stiffness(self, k_hertz, m_eff, u_ref, e_eff, r_eff):
+        """k: Hertz' k (N/m^1.5), or for a linear spring k* of eq 2.17 (N/m)."""
+        return di_maio_stiffness(m_eff, u_ref, e_eff, r_eff) if self.n == 1.0 else k_hertz
+
+    def damping(self, c_max, e, k, m_eff, u_ref, d):
+        """c: c_max (N·s/m) as given, or calibrated to the restitution e at u_ref."""
+        return calibrate_damping(self.id, e, k, self.n, m_eff, u_ref, d) if self.calibrated else c_max
+
+
+REGISTRY = (
+    ContactLaw("adams-impact", 0, 1.5, _step_shape, _eq_2_16_damping, calibrated=False, parameters=("k", "n", "c", "d")),
+    ContactLaw("kelvin-voigt", 1, 1.0, _unit_shape, _eq_2_16_damping, constant_e=True),
+    ContactLaw("hertz-damper", 2, 1.5, _unit_shape, _eq_2_16_damping),
+    ContactLaw("hunt-crossley", 3, 1.5, _hunt_crossley_shape, _hunt_crossley_damping),
+    ContactLaw("hertz-mindlin", 4, 1.5, _mindlin_shape, _tsuji_damping, constant_e=True),
+)
+NAMES = tuple(law.name for law in REGISTRY)
+CONSTANT_E_LAWS = tuple(law.name for law in REGISTRY if law.constant_e)
+
+
+def law_by_name(name):
+    """The ContactLaw called `name` (one of NAMES)."""
+    return REGISTRY[NAMES.index(name)]
+
+
+
 def damping_shape(law, u, k, n, d, m_eff):
-    """g(u) of the table above."""
-    if law == 0:
-        return smoothstep(u / d)
-    if law in (1, 2):
-        return np.ones_like(u)
-    if law == 3:
-        return k * u**n
-    if law == 4:
-        return np.sqrt(m_eff * n * k) * u ** (0.5 * (n - 1.0))
-    raise ValueError(f"unknown law id {law}")
+    """g(u) of the law with id `law` (the table above)."""
+    return REGISTRY[law].shape(u, k, n, d, m_eff)
 
 
 def normal_force(law, u, udot, k, n, c, d, m_eff):
@@ -152,16 +231,8 @@ def simulate_impact(law, k, n, c, d, m_eff, v0, steps=2000):
 
 
 def closed_form_damping(law, e, k, n, m_eff, u_ref):
-    """First guesses: eq 2.16 (with k* for the Hertz laws), Hunt-Crossley's
-    λ/k = 3(1-e)/(2u), and the Tsuji coefficient 2√(5/6)·β for hertz-mindlin."""
-    ln_e = math.log(e)
-    zeta = -ln_e / math.sqrt(ln_e**2 + math.pi**2)
-    if law == 3:
-        return 1.5 * (1.0 - e) / u_ref
-    if law == 4:
-        return 2.0 * math.sqrt(5.0 / 6.0) * zeta
-    k_lin = k if n == 1.0 else (n * k * ((n + 1) * m_eff * u_ref**2 / (2 * k)) ** ((n - 1) / (n + 1)))
-    return 2.0 * zeta * math.sqrt(m_eff * k_lin)
+    """First guess of the damping c of the law with id `law` for restitution e."""
+    return REGISTRY[law].first_guess(e, k, n, m_eff, u_ref)
 
 
 @functools.lru_cache(maxsize=256)

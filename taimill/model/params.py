@@ -60,8 +60,12 @@ class NormalLaw:
     u_ref: float  #: m/s
 
     @property
+    def contact_law(self) -> laws_np.ContactLaw:
+        return laws_np.law_by_name(self.law)
+
+    @property
     def law_id(self) -> int:
-        return laws_np.LAWS[self.law]
+        return self.contact_law.id
 
 
 @dataclass(frozen=True)
@@ -359,22 +363,18 @@ def load_jar(name: str, source="preset", base: Path | None = None) -> Jar:
 
 # ------------------------------------------------------------------ contact laws
 def _normal_law(t: _Table, law: str, k, m_eff, e_eff, r_eff) -> NormalLaw:
-    """One contact type; e_eff (Pa) and r_eff (m) of eq 2.17 give kelvin-voigt's k*."""
+    """One contact type, k and c derived as its registry entry says; e_eff (Pa) and
+    r_eff (m) of eq 2.17 give a linear spring's k*."""
     c_max = t.get("c_max_Ns_per_mm", lo=0, hi=1e6) * 1e3  # N·s/mm → N·s/m (SPEC §3 trap)
     d = t.get("d_mm", lo=0, lo_open=True, hi=100) * 1e-3
     e = t.get("e", lo=0, lo_open=True, hi=1)
     u_ref = t.get("u_ref_mm_s", lo=0, lo_open=True, hi=1e6) * 1e-3
     t.done()
-    law_id = laws_np.LAWS[law]
-    if law_id == 0:
-        return NormalLaw(law, k, 1.5, c_max, d, m_eff, e, u_ref)
-    if not e < 1.0:
+    cl = laws_np.law_by_name(law)
+    if cl.calibrated and not e < 1.0:
         raise ConfigError(t.source, t.key("e"), e, f"law {law} needs a restitution in (0, 1)")
-    n = 1.0 if law == "kelvin-voigt" else 1.5
-    if n == 1.0:
-        k = laws_np.di_maio_stiffness(m_eff, u_ref, e_eff, r_eff)
-    c = laws_np.calibrate_damping(law_id, e, k, n, m_eff, u_ref, d)
-    return NormalLaw(law, k, n, c, d, m_eff, e, u_ref)
+    k = cl.stiffness(k, m_eff, u_ref, e_eff, r_eff)
+    return NormalLaw(law, k, cl.n, cl.damping(c_max, e, k, m_eff, u_ref, d), d, m_eff, e, u_ref)
 
 
 def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source, override=None):
@@ -389,7 +389,7 @@ def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source,
     ball_mat = t.get("ball", kind=str)
     wall_mat = t.get("wall", kind=str)
     t.get("ball_radius_mm", lo=0, lo_open=True, hi=1000)
-    law = law or t.get("law", kind=str, allowed=tuple(laws_np.LAWS))
+    law = law or t.get("law", kind=str, allowed=laws_np.NAMES)
     t.used.add("law")
     if ball_mat != balls.material.name:
         raise ConfigError(source, "balls.material", balls.material.name, f"the pair's contact set '{contact}' is for {ball_mat} balls")
@@ -419,8 +419,8 @@ def pair_contact(pair: str, radius: float | None = None, law: str | None = None,
     radius = radius or t.get("ball_radius_mm", lo=0, lo_open=True, hi=1000) * 1e-3
     ball = Balls(1, load_material(t.get("ball", kind=str), file), radius)
     jar = Jar("plate", "drop test", 10.0, t.get("wall", kind=str), (("circle", {"radius": 1.0}),))  # a 2 m wide plate
-    if law is not None and law not in laws_np.LAWS:
-        raise ConfigError(source, "law", law, f"must be one of {', '.join(laws_np.LAWS)}")
+    if law is not None and law not in laws_np.NAMES:
+        raise ConfigError(source, "law", law, f"must be one of {', '.join(laws_np.NAMES)}")
     bb, bw = _contact_laws(contact_id, law, ball, jar, source, contact)
     return ball, jar, bb, bw, friction
 
@@ -469,7 +469,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     if ft is not None:  # the pair's friction, tuned by the user
         friction = _friction(ft, f"{pair} (tuned)", friction)
         ft.done()
-    law = t.get("law", None, allowed=tuple(laws_np.LAWS))
+    law = t.get("law", None, allowed=laws_np.NAMES)
     ball_ball, ball_wall = _contact_laws(contact, law, balls, jar, source)
 
     plate_rpm = t.get("plate_rpm", **RANGES["plate_rpm"].bounds)

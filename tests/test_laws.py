@@ -40,6 +40,10 @@ def test_registry_ids_are_indices():
     assert [laws_np.law_by_name(name).id for name in laws_np.NAMES] == [law.id for law in laws_np.REGISTRY]
 
 
+def test_taichi_shapes_cover_exactly_the_registry():
+    assert sorted(laws.SHAPES) == sorted(laws_np.NAMES)
+
+
 def test_law_table_in_the_docstring_matches_the_registry():
     rows = [[c.strip() for c in line.split("|")[1:4]] for line in laws_np.__doc__.splitlines()
             if line.startswith("| ") and not line.startswith("| law ")]

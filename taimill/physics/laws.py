@@ -1,8 +1,11 @@
-"""Contact laws as Taichi functions: pure functions of local quantities (STYLE rule 1).
-Their NumPy twins, the law table and the sources are in `laws_np.py`; the tests hold
-the two equal."""
+"""Contact laws as Taichi functions: pure functions of local quantities. Their NumPy
+twins, the law table, the registry and the sources are in `taimill.model.laws`; the
+tests hold the two equal. Each registered law has its damping shape g here, in SHAPES
+under its name; `damping_shape` dispatches on the law id over the registry."""
 
 import taichi as ti
+
+from taimill.model.laws import REGISTRY
 
 
 @ti.func
@@ -24,15 +27,45 @@ def power(u, n):
 
 
 @ti.func
+def step_shape(u, un, k, n, d, m_eff):
+    """adams-impact: step(u/d), eqs 2.20 / 3.2."""
+    return smoothstep(u / d)
+
+
+@ti.func
+def unit_shape(u, un, k, n, d, m_eff):
+    """kelvin-voigt, hertz-damper: 1 (eqs 2.13, 2.18)."""
+    return 1.0
+
+
+@ti.func
+def hunt_crossley_shape(u, un, k, n, d, m_eff):
+    """hunt-crossley: k uⁿ, eq 2.19."""
+    return k * un
+
+
+@ti.func
+def mindlin_shape(u, un, k, n, d, m_eff):
+    """hertz-mindlin: √(m_e S_n), S_n = n k u^(n-1) (Tsuji 1992)."""
+    return ti.sqrt(m_eff * n * k * un / u)
+
+
+SHAPES = {
+    "adams-impact": step_shape,
+    "kelvin-voigt": unit_shape,
+    "hertz-damper": unit_shape,
+    "hunt-crossley": hunt_crossley_shape,
+    "hertz-mindlin": mindlin_shape,
+}
+
+
+@ti.func
 def damping_shape(law: ti.i32, u, un, k, n, d, m_eff):
-    """g(u) of the law table in laws_np; un = uⁿ."""
+    """g(u) of the registered law with id `law`; un = uⁿ."""
     g = 1.0
-    if law == 0:  # adams-impact, eqs 2.20 / 3.2
-        g = smoothstep(u / d)
-    elif law == 3:  # hunt-crossley, eq 2.19
-        g = k * un
-    elif law == 4:  # hertz-mindlin, damping ∝ √(m_e S_n), S_n = n k u^(n-1)
-        g = ti.sqrt(m_eff * n * k * un / u)
+    for i in ti.static(range(len(REGISTRY))):
+        if law == REGISTRY[i].id:
+            g = SHAPES[REGISTRY[i].name](u, un, k, n, d, m_eff)
     return g
 
 

@@ -158,7 +158,7 @@ def test_record_of_the_store_equals_the_live_recording(run):
 
 def test_lab_frame_pose_follows_the_ramp(run):
     """Jar axis on the plate circle at φ_p(t) = Ω T (s³ - s⁴/2), s = t/T during the
-    start-up ramp (frame_np.Ramp), turned by φ_jar = w T (s³ - s⁴/2)."""
+    start-up ramp (taimill.model.frame.Ramp), turned by φ_jar = w T (s³ - s⁴/2)."""
     store, _, converted = run
     c = store.config
     t = table(converted, scene.JAR)

@@ -24,6 +24,8 @@ REGISTRY holds one `ContactLaw` per row of the table, in id order: the id is the
 integer the kernels receive. Adding a law touches its REGISTRY entry here (name, n,
 NumPy g, first guess of c, how c and k are derived) and its Taichi g in
 `taimill.physics.laws.SHAPES`; tests hold this table, REGISTRY and SHAPES in step.
+The automatic time step needs nothing per law: `auto_dt` simulates each law's own
+impacts (`contact_dt`).
 """
 
 from __future__ import annotations
@@ -143,7 +145,6 @@ CONSTANT_E_LAWS = tuple(law.name for law in REGISTRY if law.constant_e)
 def law_by_name(name):
     """The ContactLaw called `name` (one of NAMES)."""
     return REGISTRY[NAMES.index(name)]
-
 
 
 def damping_shape(law, u, k, n, d, m_eff):

@@ -48,7 +48,7 @@ class Friction:
 
 @dataclass(frozen=True)
 class NormalLaw:
-    """F = max(0, k uⁿ + c g(u) u̇) for one contact type (see laws_np)."""
+    """F = max(0, k uⁿ + c g(u) u̇) for one contact type (see taimill.model.laws)."""
 
     law: str
     k: float  #: N/m^n

@@ -24,7 +24,7 @@ Drive = ti.types.struct(
 @ti.func
 def ramp_at(p, t):
     """(speed, acceleration, angle) of a ramp p = (t0, start, end, T, phase0) at t.
-    Twin of frame_np.Ramp.at."""
+    Twin of taimill.model.frame.Ramp.at."""
     tau = ti.max(t - p[0], 0.0)
     s = ti.min(tau / p[3], 1.0)
     delta = p[2] - p[1]

@@ -13,7 +13,7 @@ Entity tree (SI units: m, s, J, W):
                              so the tangential ones start hidden (one click shows them)
     /jar/contact_map         ball-wall events, coloured by u̇_n, shown accumulated
     /plate                   lab frame only: the plate rim and the jar's path
-    /stats/...               scalar series (recording_stats.py)
+    /stats/...               scalar series (stats.py)
     /histograms/onset_{normal,tangential}   BarCharts over log10 onset speed
     /run/info                the resolved preset and, at the end, the summary
 
@@ -116,7 +116,7 @@ def jar_strips(vertices: np.ndarray, height: float) -> list[np.ndarray]:
 
 
 def floor_mesh(vertices: np.ndarray) -> rr.Mesh3D:
-    """Triangle fan from the axis: valid because profiles are star-shaped (geometry.py)."""
+    """Triangle fan from the axis: valid because profiles are star-shaped (taimill.model.geometry)."""
     n = len(vertices)
     points = np.vstack([[0.0, 0.0, 0.0], np.column_stack([vertices, np.zeros(n)])])
     i = np.arange(1, n + 1)

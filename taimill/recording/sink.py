@@ -86,7 +86,7 @@ class RerunSink:
         self.emitted = -math.inf  # last time whose statistics are written
         self.next_histogram = math.nan
         self.first_ledger = None  # (imbalance, drive work) of the first row, J
-        self.energy_scale = 0.0  # J, recording_stats.balance_error
+        self.energy_scale = 0.0  # J, stats.balance_error
 
     def frames(self, block: dict[str, np.ndarray]) -> None:
         """Buffer frames: time (F,) s; position, velocity (F, N, 3) m, m/s (jar frame)."""

@@ -1,6 +1,6 @@
 """Sliding-window statistics of a run for the recording (pure NumPy functions).
 
-The summary (taimill/summary.py) gives one number per run; a recording shows how the
+The summary (taimill/analysis/summary.py) gives one number per run; a recording shows how the
 same quantities evolve. At a time T each rate is taken over the window (T - W, T]:
 
     impact power  P_n = Σ SE_n / W, P_t = Σ SE_t / W          (thesis eq 3.8)

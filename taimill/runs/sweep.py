@@ -1,8 +1,8 @@
 """Parameter sweeps (SPEC §9 `taimill sweep`): plan the cartesian product of the swept
 values and the replicas' seeds, validate every point before any kernel runs, batch the
 points into chunks of B mills (one Runner, one fused kernel per chunk), run the chunks
-on spawned local processes or a dask cluster (sweepexec), store them (sweepstore), and
-optionally refine the location of a figure's maximum along K (sweepstats).
+on spawned local processes or a dask cluster (executors), store them (taimill.store.sweep), and
+optionally refine the location of a figure's maximum along K (taimill.analysis.sweep).
 
 A point is exactly the run `taimill run PRESET` with the same overrides and seed: the
 same MillSpec, the same summary code (simulation.start_point / point_result), so its
@@ -226,7 +226,7 @@ def run_sweep(req: Request, store: SweepStore | None = None, **run_kw) -> tuple[
 
 
 def refine(rows: dict, metric: str, rounds: int, evaluate) -> tuple[dict, list[dict]]:
-    """`rounds` rounds of sweepstats.refine_candidates per curve; evaluate({curve:
+    """`rounds` rounds of refine_candidates (taimill.analysis.sweep) per curve; evaluate({curve:
     [K, …]}) simulates the new K values (all replicas) and returns their rows by index.
     Returns (all rows, parabolic peak per curve)."""
     rows = dict(rows)
@@ -260,7 +260,7 @@ def _same(a, b) -> bool:
 
 
 def peaks_by_curve(rows, metric: str) -> list[dict]:
-    """Parabolic peak (sweepstats.parabolic_peak) of `metric` along K for each curve."""
+    """Parabolic peak (taimill.analysis.sweep.parabolic_peak) of `metric` along K for each curve."""
     by_curve: dict = {}
     for r in rows:
         by_curve.setdefault(curve_of(r), []).append(r)

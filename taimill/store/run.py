@@ -1,4 +1,4 @@
-"""Zarr v3 storage of a run: `ZarrSink` writes the stream of `sinks.py`, `open_run` reads it.
+"""Zarr v3 storage of a run: `ZarrSink` writes the stream of `taimill.store.sinks`, `open_run` reads it.
 
 Layout of one run group (SPEC §9):
 

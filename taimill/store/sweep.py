@@ -12,7 +12,7 @@ Layout:
              K_c (plate_radius, jar_radius, ball_radius, m), every scalar of the point's
              summary (integers as i8, other numbers as f8, text as strings), and `done`.
 
-Crash safety (as store.py): only the process running the sweep writes. A point's row
+Crash safety (as the run store, run.py): only the process running the sweep writes. A point's row
 is written after its group is finished, and `done` last; readers use rows with `done`.
 A killed sweep re-run with the same request skips every finished point (a point whose
 group finished but whose row was not yet marked is re-indexed from the group's summary)

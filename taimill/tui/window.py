@@ -1,5 +1,5 @@
 """Figures of a live run over a sliding window of simulated time, from the run's stream
-(sinks.py), computed by the accumulators of `taimill run`'s summary so the live
+(taimill.store.sinks), computed by the accumulators of `taimill run`'s summary so the live
 numbers mean what the run summary means (SPEC §5, §9).
 
 The energy ledger is cumulative from t = 0; a window (or a recording started mid-run)

@@ -197,6 +197,6 @@ def test_readme_architecture_names_every_package():
     readme = (PACKAGE.parent / "README.md").read_text()
     section = readme[readme.index("## Architecture"):]
     packages = {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}
-    assert packages == {layer for layer in LAYERS if (PACKAGE / layer / "__init__.py").exists()}
+    assert packages == {layer for layer in LAYERS if layer and (PACKAGE / layer / "__init__.py").exists()}
     missing = [p for p in sorted(packages) if f"`taimill/{p}/`" not in section]
     assert not missing, f"README's architecture section does not describe {missing}"

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Performance of the taimill engine (SPEC §10).
+"""Performance of the taimill engine (CY steel reference case, scaling, sweeps).
 
 Every measurement runs in a fresh interpreter (this script re-run with a hidden
 --worker argument), so each gets its own `ti.init` with the requested thread count
@@ -43,7 +43,7 @@ tick-sampled: ±0.2 for bursty or short measurements). With others near 1 on a
    warm-up column, not in the overhead).
 4. Sweeps (issue 5): chunks of B = 1, 2, 4 reference mills (3 s each) in one kernel on
    one thread, and two such processes at once (B = 2), as µs per mill-step (this
-   chose B and the process count); then the 21-point K sweep of SPEC §10 (K = 0 ... -4,
+   chose B and the process count); then the 21-point K sweep (K = 0 ... -4,
    CY steel, Ω = 200 rpm, 24 s per point; 3 s with --quick, the 24 s wall time then
    extrapolated linearly) through the public path `taimill.runs.sweep.run_sweep` on one
    spawned process per core, no store. Timed from the call to the last result: worker start-up, ti.init
@@ -69,10 +69,10 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 PRESET = ROOT / "presets" / "p4-cy-steel.toml"
-FULL_DURATION = 24.0  # s simulated, the reference run of SPEC §10
+FULL_DURATION = 24.0  # s simulated, the reference run (the thesis' 24 s)
 QUICK_DURATION = 3.0  # s simulated, --quick
 COMPILE_DURATION = 0.05  # s simulated, the untimed run that compiles the engine
-SWEEP_POINTS = 21  # K sweep of SPEC §10
+SWEEP_POINTS = 21  # K sweep 0 ... -4 at 0.2
 REFERENCE_BALLS = 12  # the preset's count: that scaling point uses the preset's jar
 SCALING_N = (REFERENCE_BALLS, 100, 1000, 10_000, 100_000)
 QUICK_MAX_N = 10_000
@@ -84,7 +84,7 @@ TARGET = {False: 3.0, True: 1.0}  # timed wall seconds per scaling point: full, 
 SETTLE_SECONDS = 0.1  # simulated, before the "settled" row
 KIB_PER_BALL = 30  # peak RSS per ball, measured at 100 000 balls in parallel mode
 WORKER_TIMEOUT = 300  # s per subprocess, set-up and compilation included
-SWEEP_RATIOS = "0:-4:0.2"  # the 21 K values of SPEC §10
+SWEEP_RATIOS = "0:-4:0.2"  # the 21 K values of the sweep benchmark
 SWEEP_TIMEOUT = 3600  # s, the whole sweep in one measuring subprocess
 MARKER = "BENCH-RESULT "
 

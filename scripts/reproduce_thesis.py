@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Reproduce the five reference results of SPEC §6 as sweeps and write
+"""Reproduce the thesis' five reference results (docs/validation.md) as sweeps and write
 results/thesis_comparison.md (claim, thesis value, our value, agrees) and its figures.
 
 Full length (the acceptance run; 318 points of 24 s, analysis from 4 s, resumable).
@@ -22,7 +22,7 @@ Each sweep goes to STORE_DIR/NAME.zarr; re-running the same command resumes them
 (finished points are kept). Every claim is one function of the sweep data with an
 explicit, numeric criterion. The figure of merit of each claim is read through
 `Metrics.values(sweep, key)`, which switches estimator: `--estimator event` (default,
-SPEC §5: one value per collision event, optionally without events slower than
+docs/outputs.md: one value per collision event, optionally without events slower than
 `--min-un` mm/s) or `--estimator sampled` (the thesis' own §3.3 estimator: contacts
 sampled at 100 /s, taimill.analysis.run). Thesis values are read from its text
 (chapters 3-5); its figures are not in our copy, so values are those the text states.
@@ -331,9 +331,9 @@ def figures(stores, out_dir: Path) -> list[Path]:
 def write_markdown(path: Path, rows, args, wall, figs, sampled_rows=None):
     full = args.duration is None and args.analysis_start is None and args.step == 0.2 and not args.points
     start = args.analysis_start if args.analysis_start is not None else 4.0 if args.duration is None else args.duration / 6
-    lines = ["# taimill against the thesis' reference results (SPEC §6)", ""]
+    lines = ["# taimill against the thesis' reference results", ""]
     if len(rows) and len({r["claim"][0] for r in rows}) < 5:
-        lines += ["**PARTIAL**: not every SPEC §6 result is in this table (--claims).", ""]
+        lines += ["**PARTIAL**: not every reference result is in this table (--claims).", ""]
     if not full:
         lines += ["**REDUCED RUN** (shorter runs and/or a coarser K grid): it proves the pipeline; the verdicts "
                   "below are not the reproduction. Run `scripts/reproduce_thesis.py` with no options for that.", ""]

@@ -1,4 +1,4 @@
-"""User-facing errors: one line naming file, key, value and what is allowed (SPEC §7)."""
+"""User-facing errors: one line naming file, key, value and what is allowed."""
 
 from __future__ import annotations
 

@@ -230,13 +230,13 @@ def test_regime_features_balls_pinned_to_the_wall_are_rolling():
 
 # ------------------------------------------------------------------ analytic landmarks
 def test_critical_ratio_p4():
-    # SPEC §2: |K_c| ≈ 2.17 for the 80 ml P4 jar and 6 mm balls
+    # docs/model.md: |K_c| ≈ 2.17 for the 80 ml P4 jar and 6 mm balls
     assert critical_ratio(0.125, 0.0325, 0.006) == pytest.approx(-2.17, abs=0.005)
 
 
 @pytest.mark.parametrize("K", [-0.6, -1.4, -2.0])
 def test_single_ball_hit_matches_jar_frame_integration(K):
-    # Independent check: integrate the free flight in the jar frame with the SPEC §2
+    # Independent check: integrate the free flight in the jar frame with the docs/model.md
     # accelerations (RK4, 20 µs) from the detachment point, where the ball is at rest on
     # the wall; the wall impact speeds must agree within 1 % (step-size error ≪ 1 %).
     Om, Rp, rho = 200 * math.pi / 30, 0.125, 0.0325 - R_BALL

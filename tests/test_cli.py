@@ -1,4 +1,4 @@
-"""The real CLI in a subprocess (SPEC §9): --json output, bit-identical reruns, bad
+"""The real CLI in a subprocess (docs/outputs.md): --json output, bit-identical reruns, bad
 input handled as one-line errors with exit code 2."""
 
 import json
@@ -13,7 +13,7 @@ import pytest
 from taimill.store.run import open_run
 
 ROOT = Path(__file__).resolve().parent.parent
-SPEC_KEYS = (
+SUMMARY_KEYS = (
     "events", "events_ball_ball", "events_ball_wall", "impact_power", "impact_power_normal",
     "impact_power_tangential", "mean_se", "mean_se_normal", "mean_se_tangential", "dissipated_power",
     "energy_balance_error", "randomness_index", "regime", "sim_seconds", "wall_seconds", "realtime_factor",
@@ -26,7 +26,7 @@ def taimill(*args, cwd=ROOT):
 
 
 def test_run_json_six_seconds_is_complete_balanced_and_bit_identical(tmp_path):
-    # Issue acceptance: the SPEC §9 keys, energy balance within 1 %, a second run
+    # Issue acceptance: the summary keys, energy balance within 1 %, a second run
     # bit-identical (event tables compared exactly, summaries except timings).
     runs = []
     for name in ("a", "b"):
@@ -36,7 +36,7 @@ def test_run_json_six_seconds_is_complete_balanced_and_bit_identical(tmp_path):
         summary = json.loads(res.stdout)  # stdout is exactly one JSON object
         runs.append((summary, open_run(out)))
     (s1, r1), (s2, r2) = runs
-    for key in SPEC_KEYS:
+    for key in SUMMARY_KEYS:
         assert key in s1
     assert s1["sim_seconds"] == pytest.approx(6.0, abs=600 * s1["dt"])  # whole steps per 10 ms frame
     assert s1["events"] > 1000

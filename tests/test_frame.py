@@ -1,4 +1,4 @@
-"""Friction and the spinning jar frame against analytic results (SPEC §2, §3, §8)."""
+"""Friction and the spinning jar frame against analytic results (docs/validation.md)."""
 
 import numpy as np
 import pytest
@@ -24,7 +24,7 @@ def _run(spec):
 
 @pytest.mark.parametrize("mu", [0.2, 0.8])
 def test_sliding_ball_starts_rolling_at_t_star(mu):
-    # SPEC §3: t* = 2 v0/(7 μ g), final speed 5 v0/7. Tolerance 1 % on t*: the
+    # Rigid-body theory: t* = 2 v0/(7 μ g), final speed 5 v0/7. Tolerance 1 % on t*: the
     # regularised μ(v) lets the last v_d = 10 mm/s of slip decay more slowly
     # (≈ v_d/(3.5 μ g) ≈ 1 ms of ≈ 100 ms); 0.2 % on the speed.
     ball, jar, bb, bw, _ = steel()
@@ -66,7 +66,7 @@ def test_stiff_friction_never_reverses_the_slip_within_a_step():
 
 
 def test_free_flight_is_a_straight_line_in_the_ground_frame():
-    # Every jar-frame term of SPEC §2 (plate translation, centrifugal, Coriolis, both
+    # Every jar-frame term of docs/model.md (plate translation, centrifugal, Coriolis, both
     # Euler terms during the start-up ramp) together: a ball touching nothing, without
     # gravity, must move uniformly on a straight line in the ground frame. Jar-frame
     # state mapped to the ground with the analytic ramp angles. Tolerance: 1 µm of
@@ -100,7 +100,7 @@ def test_free_flight_is_a_straight_line_in_the_ground_frame():
 
 
 def test_jacobi_energy_is_conserved_in_a_jar_fixed_to_the_plate():
-    # SPEC §8: K = 1 (w = Ω, ψ fixed), elastic frictionless contacts: the rotating-frame
+    # K = 1 (w = Ω, ψ fixed), elastic frictionless contacts: the rotating-frame
     # energy Σ ½mv² - ½mΩ²|R_p ê_ψ + (x, y)|² + mgz + U_el is conserved. Bounds, in
     # units of the centrifugal energy scale Σ ½ m (Ω R_p)²: drift of 0.1 s medians over
     # 2 s below 1e-3 (measured 1.5e-4 to 3.2e-4 as round-off changes the chaotic path:
@@ -131,7 +131,7 @@ def test_jacobi_energy_is_conserved_in_a_jar_fixed_to_the_plate():
 
 
 def test_energy_ledger_closes_in_a_mill_run():
-    # SPEC §8: drive work = Δ(kinetic + potential + elastic) + dissipation. 1 % of the
+    # Energy ledger: drive work = Δ(kinetic + potential + elastic) + dissipation. 1 % of the
     # drive work over 2 s of the CY steel preset (measured ≈ 0.03 %).
     p = load_preset("presets/p4-cy-steel.toml")
     spec = from_preset(p, 2.0)

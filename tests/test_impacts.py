@@ -1,4 +1,4 @@
-"""Single impacts on the real engine against the thesis and analytic results (SPEC §8):
+"""Single impacts on the real engine against the thesis and analytic results (docs/validation.md):
 drop tests, the two-sphere impacts of thesis §2.3, Chung & Ooi (2011) benchmarks."""
 
 import math
@@ -15,7 +15,7 @@ G = 9.81
 
 
 def test_steel_drop_test_matches_thesis():
-    # SPEC §8 / issue: e within 0.03 of 0.52 (measured 0.516), 12 mm ball from 500 mm
+    # Issue acceptance: e within 0.03 of 0.52 (measured 0.516), 12 mm ball from 500 mm
     # with Table 3.2 parameters (the Adams law; its e depends on speed).
     r = drop_test("steel-steel", 0.5)
     assert r["e"] == pytest.approx(0.52, abs=0.03)
@@ -48,7 +48,7 @@ def test_engine_restitution_equals_the_law_integrated_finely():
 
 
 def test_drop_test_converges_in_dt():
-    # Halving dt from the automatic value changes e by < 0.003 (SPEC §8 time-step check).
+    # Halving dt from the automatic value changes e by < 0.003 (the time-step check).
     auto = drop_test("steel-steel", 0.5)
     half = drop_test("steel-steel", 0.5, dt=auto["dt"] / 2)
     assert abs(auto["e"] - half["e"]) < 3e-3

@@ -1,4 +1,4 @@
-"""Jars as data (SPEC §4): cross-section areas against Table 4.1, the SDF (sign,
+"""Jars as data (docs/model.md, jars): cross-section areas against Table 4.1, the SDF (sign,
 unit gradient, continuous normals, Taichi == NumPy) and balls against every wall
 feature of a spinning jar."""
 
@@ -21,7 +21,7 @@ TABLE_4_1 = {"CY": 72, "HM": 60, "1L": 71, "3L": 69, "T": 51}  # ml
 
 @pytest.mark.parametrize("name", ["HM", "1L", "3L", "T"])
 def test_area_ratio_to_cy_matches_table_4_1(name):
-    # SPEC §4: within 3 % of the volume ratio (the jar files hit it within 0.1 %).
+    # Within 3 % of the volume ratio (the jar files hit it within 0.1 %).
     ratio = load_jar(name).area / load_jar("CY").area
     assert ratio == pytest.approx(TABLE_4_1[name] / 72, rel=0.03)
 

@@ -1,4 +1,4 @@
-"""Contact laws: thesis constants, the SPEC §3 unit trap, Taichi == NumPy twin."""
+"""Contact laws: thesis constants, the damping unit trap, Taichi == NumPy twin."""
 
 import numpy as np
 import pytest
@@ -19,7 +19,7 @@ def test_hertz_stiffness_matches_thesis_table_3_2():
 
 
 def test_zirconia_stiffness_matches_thesis_table_5_2():
-    # SPEC §3 lists k_ss 176 730, k_sp 249 935 for 3 mm zirconia balls on a zirconia
+    # Table 5.2 lists k_ss 176 730, k_sp 249 935 for 3 mm zirconia balls on a zirconia
     # jar; tolerance 0.1 %: the thesis rounds E and ν.
     _, _, bb, bw, _ = pair_contact("zirconia-zirconia")
     assert bb.k / N_PER_MM15 == pytest.approx(176_730, rel=1e-3)
@@ -119,7 +119,7 @@ def test_calibrated_laws_deliver_their_restitution_at_every_speed(law, e):
 
 
 def test_closed_form_damping_overshoots_restitution_with_the_clamp():
-    # SPEC §3: with F ≥ 0 the closed-form β(e) rebounds higher than asked (0.516 → ≈0.56).
+    # With F ≥ 0 the closed-form β(e) rebounds higher than asked (0.516 → ≈0.56).
     _, _, _, bw, _ = pair_contact("steel-steel", law="hertz-mindlin")
     c0 = laws_np.closed_form_damping(bw.law_id, 0.516, bw.k, bw.n, bw.m_eff, bw.u_ref)
     got = laws_np.simulate_impact(bw.law_id, bw.k, bw.n, c0, bw.d, bw.m_eff, 3.309)["e"][0]

@@ -1,4 +1,4 @@
-"""Spatial hash and Verlet lists against all pairs (SPEC §8), and the modes agreeing."""
+"""Spatial hash and Verlet lists against all pairs (exact), and the modes agreeing."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Whole runs: every preset is a test (STYLE rule 11), faults keep what was written,
+"""Whole runs: every preset is a test (short, with physical checks), faults keep what was written,
 results are deterministic, the time step converges."""
 
 import dataclasses
@@ -98,7 +98,7 @@ def _mean_se_at(dt_factor, seeds, duration):
 
 
 def test_mean_stress_energy_converges_in_dt_short():
-    # CI form of the SPEC §8 check: one seed, a 2 s window. Single 2 s windows scatter
+    # CI form of the dt-convergence check: one seed, a 2 s window. Single 2 s windows scatter
     # by ≈ 4 % seed to seed (6 s windows: 2 %), so the bound is 12 % (3σ); the full
     # test below is the sharp one.
     a, b = _mean_se_at(1.0, (1,), 4.0), _mean_se_at(0.5, (1,), 4.0)
@@ -107,7 +107,7 @@ def test_mean_stress_energy_converges_in_dt_short():
 
 @pytest.mark.full
 def test_mean_stress_energy_converges_in_dt():
-    # SPEC §8: halving dt changes the mean SE by less than its seed-to-seed scatter.
+    # Halving dt changes the mean SE by less than its seed-to-seed scatter.
     # Four seeds × 6 s windows at dt and dt/2: the difference of the means was 0.3-1.4 %
     # for 20-40 steps per contact, standard error 1.1 %; bound 4 % (≈ 3 standard errors).
     a, b = _mean_se_at(1.0, (1, 2, 3, 4), 8.0), _mean_se_at(0.5, (1, 2, 3, 4), 8.0)

@@ -1,4 +1,4 @@
-"""Sweeps (SPEC §9): planning and validation, sweep points bit-identical to `taimill run`
+"""Sweeps (`taimill sweep`): planning and validation, sweep points bit-identical to `taimill run`
 on local spawned processes and on a real dask LocalCluster, resuming, replicas' bands,
 refinement of a maximum, sweep figures and the measured-data overlay."""
 

@@ -2,7 +2,7 @@
 the lid or each other at a stored instant, and their current normal and slip speeds.
 
 Used by the sampled estimator (thesis §3.3) and the regime classifier. Conventions as
-in the engine (SPEC §2, §5): positions and velocities in the jar frame, spins absolute
+in the engine (docs/model.md, docs/outputs.md): positions and velocities in the jar frame, spins absolute
 in jar-frame components; the slip speed at a contact point includes spin,
 u = v_i - v_j + (s_i - w ẑ) × a_i - (s_j - w ẑ) × a_j, walls at rest in the jar frame.
 """

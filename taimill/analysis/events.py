@@ -1,5 +1,5 @@
 """Stress-energy statistics from the event table: the exact, event-based estimator
-(SPEC §5; default). One term per collision event, taken at its onset.
+(docs/outputs.md; default). One term per collision event, taken at its onset.
 
     SE = ½ m_e u̇²                       per event, normal and tangential parts
     E_I/τ = Σ SE / τ                    impact power (thesis eq 3.8, summed over events)

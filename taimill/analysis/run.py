@@ -1,4 +1,4 @@
-"""Analyse a stored run (SPEC §5): every quantity from the committed rows of its
+"""Analyse a stored run (docs/outputs.md): every quantity from the committed rows of its
 tables, so a store left by a killed run is analysed up to its commit markers."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Run summary (SPEC §5, §9) accumulated from the stream, as a sink: the event-based
+"""Run summary (docs/outputs.md) accumulated from the stream, as a sink: the event-based
 stress-energy statistics over the analysis window, dissipated power, the energy
 balance, g(r) and its randomness index, the motion regime, the wear hot spot and the
 analytic landmarks (critical ratio, single-ball hit energy).
@@ -57,7 +57,7 @@ class EnergyLedger:
 
 
 class SummarySink:
-    """Sink computing the SPEC §9 summary keys over the analysis window [t0, end).
+    """Sink computing the summary keys (docs/outputs.md) over the analysis window [t0, end).
 
     analysis_start, duration: s. The geometry comes from the config given to start();
     the jar and ball radii arguments are accepted for older callers and not needed.

@@ -1,4 +1,4 @@
-"""Analytic landmarks for one ball in a planetary mill (SPEC §2)."""
+"""Analytic landmarks for one ball in a planetary mill (docs/model.md)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 
 def critical_ratio(plate_radius: float, jar_radius: float, ball_radius: float) -> float:
     """K_c < 0 beyond which a single frictionless ball pressed to the side wall cannot
-    detach: K² > R_p / (R_jar - r_ball) (SPEC §2). Radii in m; returns K_c (negative)."""
+    detach: K² > R_p / (R_jar - r_ball) (docs/model.md). Radii in m; returns K_c (negative)."""
     return -math.sqrt(plate_radius / (jar_radius - ball_radius))
 
 

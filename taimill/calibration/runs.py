@@ -183,7 +183,7 @@ def normal_at_onset(radius: float, offset: float) -> np.ndarray:
 def two_sphere_impacts(pair: str, cases, *, law=None, contact=None, friction: Friction | None = FRICTIONLESS) -> list[dict]:
     """Two-sphere impacts (`two_sphere_spec`), batched. `cases` are (offset Δ m, speed
     m/s); friction None means the pair's own. Velocities are of ball 0 relative to ball
-    1, approach counted positive (SPEC §5), in m/s:
+    1, approach counted positive (as in events), in m/s:
 
     - `un_onset`, `ut_onset`: normal and slip speed at first touch (the event table's);
     - `un`, `ut`, `un_final`, `ut_final`: before and after, on the apse line n_a (t_a

@@ -1,4 +1,4 @@
-"""`taimill analyse RUN.zarr` (every SPEC §5 quantity, both estimators) and
+"""`taimill analyse RUN.zarr` (every quantity of docs/outputs.md, both estimators) and
 `taimill report RUN.zarr` (publication figures)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""`taimill sweep PRESET --ratio A:B:STEP …` (SPEC §9): the cartesian product of the
+"""`taimill sweep PRESET --ratio A:B:STEP …`: the cartesian product of the
 swept values, R replicas per point, batched mills on local processes or a dask cluster,
 an optional refinement of the maximum, a sweep store and a table or JSON."""
 

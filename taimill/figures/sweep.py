@@ -1,7 +1,7 @@
 """Figures of a sweep store (NumPy + matplotlib, from its summary table), like the
 thesis' Figs 3.7, 3.8, 4.5, 4.13, 5.1 and 5.5: figures against K = ω/Ω + 1, one curve
 per Ω / pair / jar / ball count, the replicas' mean with its 95 % Student-t band, the
-single-ball critical ratio K_c (SPEC §2) marked, the refined maximum starred.
+single-ball critical ratio K_c (docs/model.md) marked, the refined maximum starred.
 
 `--overlay MEASURED.csv` draws a user's measured series against K on a second axis of
 the mean-SE figure (the thesis validates so, with 1/√⟨D⟩ and √ρ, Figs 3.9, 4.17).
@@ -125,11 +125,11 @@ def _figure(table, title, panels, ylabel, scale, peaks, measured=None):
 
 
 def _mark_critical(ax, table):
-    """K_c = -√(R_p / (R_jar - r)) for each geometry in the sweep (SPEC §2)."""
+    """K_c = -√(R_p / (R_jar - r)) for each geometry in the sweep (docs/model.md)."""
     geoms = {(float(a), float(b), float(c)) for a, b, c in zip(table["plate_radius"], table["jar_radius"], table["ball_radius"])}
     for n, g in enumerate(sorted(geoms)):
         kc = critical_ratio(*g)
-        ax.axvline(kc, color="0.3", ls="--", lw=1, label="K_c, one ball (SPEC §2)" if n == 0 else None)
+        ax.axvline(kc, color="0.3", ls="--", lw=1, label="K_c, one ball" if n == 0 else None)
 
 
 def _mark_peaks(ax, peaks, column, scale):

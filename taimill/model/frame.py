@@ -1,5 +1,5 @@
 """The jar frame's drive in NumPy: start-up / live-change ramps of the plate speed Ω
-and the absolute jar spin w (SPEC §2), twin of the Taichi functions in frame.py.
+and the absolute jar spin w (docs/model.md), twin of the Taichi functions in frame.py.
 
 A ramp goes smoothly from `start` to `end` (rad/s) over `duration` s from time `t0`,
 with the smoothstep s²(3-2s), so its derivative (the Euler term) is continuous and

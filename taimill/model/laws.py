@@ -1,7 +1,7 @@
 """Contact laws in NumPy: the twins of `laws.py`, plus what is derived from them
 before a run (Hertz stiffness, damping calibrated to a restitution, automatic dt).
 
-Every normal law has the form (SPEC §3)
+Every normal law has the form (docs/model.md, normal contact laws)
 
     F = max(0, k uⁿ + c g(u) u̇),     u ≥ 0 overlap, u̇ its rate (> 0 approaching)
 

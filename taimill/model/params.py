@@ -1,5 +1,5 @@
 """Fixed parameters of a run: frozen dataclasses in SI units, loaded from TOML and
-validated before any kernel runs (SPEC §7, §9). Files use mm and rpm where the thesis
+validated before any kernel runs (docs/model.md, faults). Files use mm and rpm where the thesis
 does, with the unit in the key name; everything here is SI (m, kg, s, rad/s).
 """
 
@@ -365,7 +365,7 @@ def load_jar(name: str, source="preset", base: Path | None = None) -> Jar:
 def _normal_law(t: _Table, law: str, k, m_eff, e_eff, r_eff) -> NormalLaw:
     """One contact type, k and c derived as its registry entry says; e_eff (Pa) and
     r_eff (m) of eq 2.17 give a linear spring's k*."""
-    c_max = t.get("c_max_Ns_per_mm", lo=0, hi=1e6) * 1e3  # N·s/mm → N·s/m (SPEC §3 trap)
+    c_max = t.get("c_max_Ns_per_mm", lo=0, hi=1e6) * 1e3  # N·s/mm → N·s/m (docs/model.md, unit trap)
     d = t.get("d_mm", lo=0, lo_open=True, hi=100) * 1e-3
     e = t.get("e", lo=0, lo_open=True, hi=1)
     u_ref = t.get("u_ref_mm_s", lo=0, lo_open=True, hi=1e6) * 1e-3

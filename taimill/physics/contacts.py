@@ -1,6 +1,6 @@
 """Neighbour loop: every contact force on one ball, gathered into its own slot (no
-atomics, STYLE rule 2), and the collision events the integrator detects itself
-(SPEC §5). Ball i visits every ball on its Verlet list (neighbours.py); the pair
+atomics), and the collision events the integrator detects itself
+(docs/model.md, collision events). Ball i visits every ball on its Verlet list (neighbours.py); the pair
 function is antisymmetric to the bit, so both visits of a pair give exactly opposite
 forces and momentum is exact. (A half loop scattering to j was measured 40 % slower.)
 

@@ -3,7 +3,7 @@
 Two launch modes share every physics function:
 - fused: one kernel runs ≥ 10⁴ steps of every mill, the time loop inside the kernel,
   one mill per CPU task (the loop is padded by PAD so that Taichi's ≥ 512-iteration
-  CPU tasks put different mills on different threads — NOTES.md batching trap);
+  CPU tasks put different mills on different threads: unpadded, B ≤ 512 mills share one);
 - parallel: one large mill (B = 1), one launch per phase per step, balls spread over
   all cores. Used where the per-step work dwarfs the ≈ 30 µs launch cost.
 """

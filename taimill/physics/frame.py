@@ -1,11 +1,11 @@
-"""The jar frame (SPEC §2): drive ramps and the frame's motion, as Taichi functions.
+"""The jar frame (docs/model.md): drive ramps and the frame's motion, as Taichi functions.
 
 The jar frame turns with the absolute jar spin w about its axis, whose centre runs on
 a circle of radius R_p at the plate speed Ω. Its turning is handled exactly, as a
 change of basis (`to_spinning`/`from_spinning`): over a step the velocity relative to
 the non-rotating frame centred on the jar is kicked and drifted, then both are
 re-expressed in the jar basis turned by the exact ramp angle Δφ_jar. That is the
-exact flow of the centrifugal, Coriolis and Euler terms of SPEC §2 (an explicit
+exact flow of the centrifugal, Coriolis and Euler terms of docs/model.md (an explicit
 Coriolis/centrifugal step turns the secular free-flight motion into an O(√dt) error:
 8 mm after 1 s at K = -2.6). What remains a force term is the translation of the
 jar centre, Ω²R_p(cosψ, sinψ, 0) - Ω̇R_p(-sinψ, cosψ, 0), and gravity.

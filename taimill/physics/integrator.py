@@ -1,5 +1,5 @@
 """Semi-implicit (symplectic) Euler in the jar frame. The integrator knows no force law
-(STYLE rule 4): contact forces come in through f and tau; the frame through frame.py,
+(any law plugs in): contact forces come in through f and tau; the frame through frame.py,
 whose spin is an exact change of basis and whose translation is a force term:
 
     u = v + w ẑ×x                       velocity in the non-rotating jar-centred frame

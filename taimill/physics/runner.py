@@ -50,7 +50,7 @@ def _engine(batch, balls, mode, use_grid, cells) -> Engine:
 
 def init_taichi(threads: int | None = None):
     """ti.init once per process (a second call invalidates fields). Serial loops and
-    f64 make results bit-identical run to run (NOTES.md); without fast-math the
+    f64 make results bit-identical run to run (tests/test_runs.py); without fast-math the
     compiler may not contract or reassociate, so both launch modes agree to the bit."""
     global _initialised
     if _initialised:

@@ -1,7 +1,7 @@
 """Taichi fields of a batch of B independent mills with up to N balls each.
 
 Model (fixed during a run, written by the launcher; live-tunable values such as the
-drive ramps and friction are field values, never Python globals — STYLE rule 6) is
+drive ramps and friction are field values, never Python globals, frozen at compile time) is
 kept apart from State (evolving). Shapes in brackets, SI units.
 """
 

@@ -5,7 +5,7 @@ Each ball can touch three walls at once — side, floor, lid — each its own co
 its own event slot, so a ball resting in the floor/side corner feels both.
 
 The profile is a G1 boundary of line and arc pieces built from the jar file's
-primitives by taimill.model.geometry (geometry is data, STYLE rule 5); this is the Taichi
+primitives by taimill.model.geometry (geometry is data: a new jar needs no code); this is the Taichi
 twin of geometry.profile_sdf, piece rows as documented there.
 """
 

@@ -1,9 +1,9 @@
 """What a taimill recording looks like: entity paths, static scenery, colour scales and
-the default blueprint (rerun-sdk 0.41; NOTES.md).
+the default blueprint (rerun-sdk 0.41).
 
 Entity tree (SI units: m, s, J, W):
 
-    /jar                     the jar frame (SPEC §2); in the lab view its pose on the plate
+    /jar                     the jar frame (docs/model.md); in the lab view its pose on the plate
     /jar/wall                the jar's real profile at floor and lid, with vertical edges
     /jar/floor               the floor, a triangle fan over the (star-shaped) profile
     /jar/balls               Points3D per frame: centres (jar frame), radii, colour = speed

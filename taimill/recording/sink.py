@@ -1,8 +1,8 @@
 """`RerunSink`: a run as a rerun recording (.rrd), from the same stream the zarr store
-consumes (sinks.py; SPEC §9 "rerun recording"; layout in recording_scene.py).
+consumes (sinks.py; docs/outputs.md, rerun recording; layout in recording_scene.py).
 
 Bulk data goes through `send_columns` in batches of about BATCH_SECONDS simulated
-seconds (NOTES.md: per-frame `log` is far too slow): ball frames on `sim_time` (s) and
+seconds (per-frame `log` tops out near 3000 frames/s): ball frames on `sim_time` (s) and
 `step` (time step index), every collision event at its own t_start, and the scalar
 series at the frame times. Events are reported when a contact ends, so a window's
 statistics are written once the stream has moved STAT_LAG past it; an event longer than
@@ -158,7 +158,7 @@ class RerunSink:
             self._send_pose(f["time"])
 
     def _send_pose(self, t: np.ndarray) -> None:
-        """Jar frame in the lab: axis at R_p (cos φ_p, sin φ_p, 0), turned by φ_jar (SPEC §2)."""
+        """Jar frame in the lab: axis at R_p (cos φ_p, sin φ_p, 0), turned by φ_jar (docs/model.md)."""
         plate = np.array([self.plate.at(x)[2] for x in t])
         jar = np.array([self.jar.at(x)[2] for x in t])
         rp = self.config["plate_radius"]

@@ -4,13 +4,13 @@ that writes the sweep store (so workers need no shared file system).
 
 Backends:
 - local: `ProcessPoolExecutor` with the **spawn** start method (fork after `ti.init`
-  hangs, NOTES.md); every worker calls `init_taichi(threads=1)` once and keeps its
+  hangs); every worker calls `init_taichi(threads=1)` once and keeps its
   engine between chunks (simulation._engines); progress comes back over a queue after
   every kernel launch.
 - dask: `distributed.Client(address).submit` per chunk; a dask worker process starts
   Taichi lazily on its first chunk and reuses it. Workers must run one thread each
   (`dask worker ADDRESS --nthreads 1`; `processes=False` or several threads break
-  Taichi, NOTES.md). Progress advances per finished chunk.
+  Taichi). Progress advances per finished chunk.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ class Job:
 
 @dataclass
 class PointResult:
-    """What a worker sends back for one point: the run's summary (SPEC §9), its status,
+    """What a worker sends back for one point: the run's summary (docs/outputs.md), its status,
     and (when a store is written) the whole stream, concatenated per table."""
 
     index: int

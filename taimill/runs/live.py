@@ -1,7 +1,7 @@
 """One mill run interactively (the TUI's engine): advanced in short kernel chunks, with
 speeds, friction, jar and ball count changed while it runs.
 
-Physics of a live change (SPEC §2):
+Physics of a live change (docs/model.md):
 - A speed change starts a new smoothstep `Ramp` from the angular velocities and
   angles the drive has at the current simulated time, so Ω, w and the jar's angle are
   continuous and the Euler terms Ω̇, ẇ are real. (Ω̇ itself may jump when a change
@@ -15,11 +15,11 @@ Physics of a live change (SPEC §2):
 - Reset and a new jar or ball count restart the mill at t = 0 from the seeded placement,
   ramping from rest to the current speeds (a new charge cannot continue the old one).
 
-Threads (NOTES.md): a kernel holds the GIL, so `advance` runs chunks of about
+Threads: a running kernel holds the GIL, so `advance` runs chunks of about
 `chunk_seconds` of wall time. New Taichi fields must be materialised in the thread that
 called ti.init: construct the LiveMill and call `rebuild` there (the UI thread);
 `advance` and the setters may run in any thread — every change of the fields goes
-through one lock (STYLE rule 6), and `advance` yields it between chunks to a waiting
+through one lock (tunables are field data), and `advance` yields it between chunks to a waiting
 setter.
 """
 
@@ -46,7 +46,7 @@ from taimill.store.sinks import FanOut
 
 SOURCE = "TUI"  # names live input in ConfigError messages
 FOREVER = 2**62  # step target of a live mill: it runs until stopped
-CHUNK_SECONDS = 0.01  # wall s per kernel launch (NOTES.md: worst UI gap 132 ms at 10 ms)
+CHUNK_SECONDS = 0.01  # wall s per kernel launch (measured: worst UI gap 132 ms at 10 ms)
 
 # Live value -> its entry in the table of allowed ranges (taimill.model.ranges), which
 # narrows some of them for a running mill.
@@ -307,7 +307,7 @@ class LiveMill:
 
     def set_friction(self, mu_s: float | None = None, mu_d: float | None = None, *, pair: str | None = None):
         """Friction from now on: a pair's coefficients (same contact set as the balls
-        and jar), then μ_s / μ_d if given. μ_d ≤ μ_s (SPEC §7)."""
+        and jar), then μ_s / μ_d if given. μ_d ≤ μ_s."""
         fr = self.friction
         if pair is not None:
             fr, contact = load_friction(pair, SOURCE)

@@ -25,7 +25,7 @@ def start_point(preset, spec, sink) -> tuple[SummarySink, FanOut]:
 
 
 def point_result(preset, spec, summary, runner, b, wall, status) -> dict:
-    """SPEC §9 summary of mill b of `runner`; wall in s."""
+    """Run summary (docs/outputs.md) of mill b of `runner`; wall in s."""
     result = summary.result(runner.time(b), wall)
     result.update(dt=spec.dt, steps=int(runner.engine.F.step[b]), status=status,
                   ratio=preset.drive.ratio, plate_rpm=preset.drive.plate_rpm)
@@ -33,7 +33,7 @@ def point_result(preset, spec, summary, runner, b, wall, status) -> dict:
 
 
 def run(preset, sink=None, *, duration: float | None = None, progress=None) -> dict:
-    """Simulate one preset; streams to `sink`; returns the SPEC §9 summary."""
+    """Simulate one preset; streams to `sink`; returns the run summary (docs/outputs.md)."""
     sink = sink or NullSink()
     spec = from_preset(preset, duration)
     summary, out = start_point(preset, spec, sink)

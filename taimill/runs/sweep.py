@@ -1,4 +1,4 @@
-"""Parameter sweeps (SPEC §9 `taimill sweep`): plan the cartesian product of the swept
+"""Parameter sweeps (`taimill sweep`): plan the cartesian product of the swept
 values and the replicas' seeds, validate every point before any kernel runs, batch the
 points into chunks of B mills (one Runner, one fused kernel per chunk), run the chunks
 on spawned local processes or a dask cluster (executors), store them (taimill.store.sweep), and
@@ -34,7 +34,7 @@ def auto_batch(n_points: int, workers: int) -> int:
     batch costs B single mills: launches of ≥ 10⁴ steps already amortise the ≈ 30 µs
     launch, and B mills on one thread run one after another (the engine pads each mill
     to its own ≥ 512-iteration task, so B > 1 could also spread over threads, but
-    sweeps use one process per core instead: NOTES.md). So B buys little speed and
+    sweeps use one process per core instead: 2× on 2 cores). So B buys little speed and
     costs load balance; it only cuts per-chunk overhead (a task round trip, a result
     hand-over) in large sweeps: B = 1 up to 8 chunks per worker, then growing to keep
     about 8 chunks per worker, at most MAX_AUTO_BATCH."""

@@ -1,13 +1,13 @@
 """Zarr v3 storage of a run: `ZarrSink` writes the stream of `taimill.store.sinks`, `open_run` reads it.
 
-Layout of one run group (SPEC §9):
+Layout of one run group (docs/outputs.md):
 
     attrs: schema_version, config, n_balls, radii (m), status, summary
     trajectory/  time (F,) s; position, velocity, spin (F, N, 3) m, m/s, rad/s
     events/      one 1-D array per `EVENT_COLUMNS` entry
     energy/      one 1-D array per `ENERGY_COLUMNS` entry
 
-Crash safety (NOTES "zarr 3.1"): every key is written atomically, but an append resizes an
+Crash safety (zarr 3.1, tests/test_store.py): every key is written atomically, but an append resizes an
 array before its data lands. So each table group carries an attribute `n_valid`, written
 only after every array of the table holds its rows; readers slice to it and a restarted
 writer trims back to it (`trim_to_valid`). A SIGKILL at any moment leaves a readable store.
@@ -59,7 +59,7 @@ def layout(n_balls: int) -> dict[str, dict[str, Column]]:
 
 TABLE_DESCRIPTIONS = {
     "trajectory": "ball states at the output frame rate",
-    "events": "one row per collision event (SPEC §5)",
+    "events": "one row per collision event (docs/outputs.md)",
     "energy": "cumulative energy ledger (J), one row per frame",
 }
 

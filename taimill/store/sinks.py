@@ -1,15 +1,15 @@
 """The one stream a simulation emits, and the sinks that consume it.
 
-A run produces three tables, appended in blocks while it runs (STYLE rule 12: zarr,
+A run produces three tables, appended in blocks while it runs (sinks, not special cases: zarr,
 rerun and the TUI consume the same stream through this one interface):
 
 - frames   — `time` (F,) s; `position`, `velocity` (F, N, 3) m, m/s in the jar frame;
              `spin` (F, N, 3) rad/s, absolute spin in jar-frame components.
-- events   — one row per collision event (SPEC §5), columns listed in `EVENT_COLUMNS`.
+- events   — one row per collision event (docs/outputs.md), columns listed in `EVENT_COLUMNS`.
 - energy   — one row per frame: `time` and the cumulative energy ledger (J), columns in
              `ENERGY_COLUMNS`.
 
-Sinks see NumPy arrays and plain dicts only (STYLE rule 7: no taichi here).
+Sinks see NumPy arrays and plain dicts only (no taichi here: only physics/ imports it).
 """
 
 from __future__ import annotations

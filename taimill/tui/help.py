@@ -26,11 +26,11 @@ and the simulation keeps running with the old one.
   K          w/Ω = ω/Ω + 1: absolute jar spin over plate speed (K < 0: counter-rotation)
   ω          jar speed relative to the plate (rpm); entering K or ω shows the other,
              and the last one entered is held when Ω changes
-  ramp       time (s) a speed change takes (smooth ramp, SPEC §2: Euler terms stay right)
+  ramp       time (s) a speed change takes (smooth ramp, so the Euler terms stay right)
   μ_s, μ_d   static and dynamic friction (eq 3.7), μ_d ≤ μ_s; or pick a material pair
   jar, balls a new jar or ball count restarts the mill at t = 0
 Readouts are over a sliding window of simulated time; K_c is the single-ball critical
-ratio (SPEC §2). Views: jar frame, from above (red mark: direction away from the plate
+ratio (docs/model.md). Views: jar frame, from above (red mark: direction away from the plate
 axis) and in section x-z."""
 
 

@@ -28,7 +28,7 @@ class FrameReady(Message):
 
 @dataclass
 class ReadoutsReady(Message):
-    """Sliding-window figures (summary keys, SPEC §9) and their recent history."""
+    """Sliding-window figures (summary keys, docs/outputs.md) and their recent history."""
 
     values: dict
     history: dict  #: name -> list of recent values
@@ -39,7 +39,7 @@ class ReadoutsReady(Message):
 
 @dataclass
 class SimFault(Message):
-    """The simulation stopped: unstable (SPEC §7); the text says why."""
+    """The simulation stopped: unstable (docs/model.md, faults); the text says why."""
 
     text: str
 

@@ -83,7 +83,7 @@ class Batched(Relay):
 
 
 class RecordingSummary(Relay):
-    """Sink: the SPEC §9 summary of what a recording receives, from its start time on
+    """Sink: the run summary (docs/outputs.md) of what a recording receives, from its start time on
     (the config's `live_start_time`), energy counted from its first row."""
 
     def __init__(self):

@@ -1,5 +1,5 @@
 """The simulation side of the app, run by one Textual thread worker: advances the
-LiveMill in ≈ 10 ms kernel launches (NOTES.md: a kernel holds the GIL) and reports only
+LiveMill in ≈ 10 ms kernel launches (a running kernel holds the GIL) and reports only
 through messages (`post`): a frame after every FRAME_PERIOD of running, the window
 readouts every READOUT_PERIOD. The UI thread talks to it through `paused` and `steps`
 and changes the mill through the LiveMill's locked setters.

@@ -1,6 +1,6 @@
 """Figures of a live run over a sliding window of simulated time, from the run's stream
 (taimill.store.sinks), computed by the accumulators of `taimill run`'s summary so the live
-numbers mean what the run summary means (SPEC §5, §9).
+numbers mean what the run summary means (docs/outputs.md).
 
 The energy ledger is cumulative from t = 0; a window (or a recording started mid-run)
 counts drive work and dissipation from its own first row (`rebased`), so its energy
@@ -45,7 +45,7 @@ class Rebased(Relay):
 
 class WindowStats:
     """Sink keeping the last `seconds` of simulated time of the stream; `result()` gives
-    the SPEC §9 figures over that window from the accumulators `SummarySink` is made of
+    the summary figures (docs/outputs.md) over that window from the accumulators `SummarySink` is made of
     (event statistics, energy ledger, regime features), without the run-only ones
     (g(r), wall map) whose set-up would cost more than the window itself."""
 

@@ -44,7 +44,7 @@ def snapshot(F: ti.template(), b, t, dr):
         el += F.elastic[b, i]
         dw += F.drive_work[b, i]
         ds += F.dissipated[b, i]
-    row = ti.Vector.zero(ti.f64, len(S.LEDGER_FIELDS))  # the schema's ledger columns, by name
+    row = ti.Vector.zero(ti.f64, S.NLEDGER)  # the schema's ledger columns, by name
     row[S.LEDGER["kinetic"]] = ke
     row[S.LEDGER["potential"]] = pe
     row[S.LEDGER["elastic"]] = el

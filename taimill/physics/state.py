@@ -30,6 +30,7 @@ EV = {name: c for c, name in enumerate(EVENT_FIELDS)}  #: column of the kernel's
 # Energy ledger snapshot columns, taken with every frame (the schema's ENERGY_COLUMNS but time).
 LEDGER_FIELDS = tuple(k for k in ENERGY_COLUMNS if k != "time")
 LEDGER = {name: c for c, name in enumerate(LEDGER_FIELDS)}  #: column of the kernel's ledger record
+NLEDGER = len(LEDGER_FIELDS)
 
 # Verlet list length per ball (equal spheres within a skin of 0.1 r: at most ~14).
 NEIGHBOURS = 32

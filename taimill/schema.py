@@ -16,9 +16,18 @@ FRAME_COLUMNS: dict[str, tuple[str, str, str]] = {
     "position": ("f8", "m", "ball centres, jar frame"),
     "velocity": ("f8", "m/s", "ball velocities, jar frame"),
     "spin": ("f8", "rad/s", "absolute spin, jar-frame components"),
+    "plate_angle": ("f8", "rad", "angle φ_p of the plate (of the jar's centre about the plate axis)"),
+    "plate_speed": ("f8", "rad/s", "plate speed Ω"),
+    "jar_angle": ("f8", "rad", "absolute angle φ_j of the jar frame (ψ = φ_p − φ_j points away from the plate axis)"),
+    "jar_spin": ("f8", "rad/s", "absolute spin w of the jar frame"),
 }
 FRAME_FIELDS = tuple(FRAME_COLUMNS)
 PER_BALL = frozenset(("position", "velocity", "spin"))
+DRIVE_FIELDS = ("plate_angle", "plate_speed", "jar_angle", "jar_spin")  #: per-frame drive columns
+VELOCITY_CONVENTION = ("velocity: of the ball centre relative to the rotating jar frame (v = u − w ẑ×x with u "
+                       "the velocity in the non-rotating jar-centred frame), jar-frame components; spin: absolute "
+                       "angular velocity, jar-frame components; position: jar frame, origin on the jar axis at "
+                       "the floor; the jar frame's angle and spin are stored per frame")
 
 # name -> (dtype, unit, meaning)
 EVENT_COLUMNS: dict[str, tuple[str, str, str]] = {
@@ -49,6 +58,21 @@ ENERGY_COLUMNS: dict[str, tuple[str, str, str]] = {
     "drive_work": ("f8", "J", "work done by the jar walls on the balls since t = 0"),
     "dissipated": ("f8", "J", "energy dissipated by all contacts since t = 0"),
 }
+
+# Where the dissipation happens: by contact kind, by class of contact and by part of the
+# contact law. A contact is an *impact* while its onset normal speed is at least the
+# stress-event threshold and it is younger than the impact age (model/mechanisms.py);
+# otherwise it is *persistent* (rolling, sliding, resting). The parts sum to `dissipated`.
+MECHANISM_KINDS = ("ball_ball", "side", "floor", "lid")
+MECHANISM_CLASSES = ("impact", "persistent")
+MECHANISM_PARTS = ("normal", "friction")
+MECHANISM_COLUMNS = tuple(f"dissipated_{k}_{c}_{p}" for k in MECHANISM_KINDS for c in MECHANISM_CLASSES
+                          for p in MECHANISM_PARTS)
+ENERGY_COLUMNS.update({
+    name: ("f8", "J", f"part of `dissipated`: {p} work in {c} contacts with the {k.replace('_', '-')}"
+           if k != "ball_ball" else f"part of `dissipated`: {p} work in {c} ball-ball contacts")
+    for name, (k, c, p) in zip(MECHANISM_COLUMNS, ((k, c, p) for k in MECHANISM_KINDS for c in MECHANISM_CLASSES
+                                                   for p in MECHANISM_PARTS))})
 
 # Event columns the host derives from the kernel's columns after each launch (the
 # kernel does not write them): name -> function of the other columns (arrays).

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from taimill.schema import DERIVED_EVENT_COLUMNS, ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_COLUMNS
+from taimill.schema import DERIVED_EVENT_COLUMNS, ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_COLUMNS, MECHANISM_COLUMNS
 from taimill.store.run import layout
 from taimill.store.sinks import MemorySink
 
@@ -25,8 +25,11 @@ def test_kernel_writes_every_event_column_once_by_name():
 
 
 def test_kernel_writes_every_ledger_column_once_by_name():
+    # the named columns, then the mechanism block in the schema's order
+    src = (PHYSICS / "engine.py").read_text()
     names = written(PHYSICS / "engine.py", "LEDGER")
-    assert sorted(names) == sorted(k for k in ENERGY_COLUMNS if k != "time")
+    assert "row[S.LEDGER[S.MECHANISM_COLUMNS[c]]] = mech[c]" in src
+    assert sorted(names + list(MECHANISM_COLUMNS)) == sorted(k for k in ENERGY_COLUMNS if k != "time")
 
 
 def test_derived_columns_are_the_stress_energies():

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import zarr
 
-from taimill.schema import ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_FIELDS
+from taimill.schema import ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_FIELDS, PER_BALL
 from taimill.store.run import ZarrSink, open_run, trim_to_valid
 
 N_BALLS = 3
@@ -21,9 +21,9 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def frame_block(rng, f):
-    """`f` random frames: time s, position m, velocity m/s, spin rad/s."""
-    block = {k: rng.normal(size=(f, N_BALLS, 3)) for k in FRAME_FIELDS[1:]}
-    return {"time": rng.uniform(size=f), **block}
+    """`f` random frames: position m, velocity m/s, spin rad/s per ball; time s and the
+    frame's drive (rad, rad/s) per frame."""
+    return {k: rng.normal(size=(f, N_BALLS, 3)) if k in PER_BALL else rng.uniform(size=f) for k in FRAME_FIELDS}
 
 
 def event_block(rng, n):

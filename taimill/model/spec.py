@@ -11,6 +11,7 @@ import numpy as np
 
 from taimill.model.frame import Ramp
 from taimill.model.geometry import Profile
+from taimill.model.mechanisms import IMPACT_AGE, STRESS_MIN_UN
 from taimill.model.params import Friction, NormalLaw, Preset
 from taimill.model.placement import random_placement
 
@@ -34,6 +35,8 @@ class MillSpec:
     dt: float  #: s
     steps: int  #: steps to run
     frame_every: int  #: steps between frames
+    stress_min_un: float = STRESS_MIN_UN  #: m/s, impacts start at least this fast
+    impact_age: float = IMPACT_AGE  #: s, older contacts are persistent
 
     @property
     def n(self):

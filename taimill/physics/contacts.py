@@ -112,12 +112,34 @@ def close_events(F: ti.template(), b, i, was_open, seen, t):
 
 
 @ti.func
+def is_impact(F: ti.template(), b, i, k, t):
+    """Class of the open contact in slot k of ball i: an impact while its onset normal
+    speed reaches the stress-event threshold and it is younger than the impact age."""
+    q = F.slot[b, i, k]
+    return q[S.SLOT_UN] >= F.stress_un[b] and t - q[S.SLOT_T0] <= F.impact_age[b]
+
+
+@ti.func
+def add_mechanism(m, kind: ti.template(), impact, dn, dtf):
+    """m (NMECH) with this contact's normal and friction dissipation added to its kind
+    and class (state.NMECH layout)."""
+    if impact:
+        m[kind * 4] += dn
+        m[kind * 4 + 1] += dtf
+    else:
+        m[kind * 4 + 2] += dn
+        m[kind * 4 + 3] += dtf
+    return m
+
+
+@ti.func
 def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
-    """Contact of balls i and j: (force on i, torque on i, dissipated, stored, slot bit
-    of i's event or 0). Events and the ledger are booked by the owner, i < j."""
+    """Contact of balls i and j: (force on i, torque on i, dissipated normal and by
+    friction, whether it is an impact, stored, slot bit of i's event or 0). Events and
+    the ledger are booked by the owner, i < j."""
     f = ti.Vector([0.0, 0.0, 0.0])
     tq = ti.Vector([0.0, 0.0, 0.0])
-    diss, stored, bit = 0.0, 0.0, 0
+    diss_n, diss_t, impact, stored, bit = 0.0, 0.0, False, 0.0, 0
     xi, xj = F.x[b, i], F.x[b, j]
     ri, rj = F.r[b, i], F.r[b, j]
     d = xj - xi
@@ -135,7 +157,7 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
         fc, udot, slip, fn, dn, dtf, el = contact_response(F, b, 0, u, nrm, vrel, mi * mj / (mi + mj), inv_mass_t, dt)
         f, tq = fc, ai.cross(fc)
         if i < j:
-            diss, stored = dn + dtf, el
+            diss_n, diss_t, stored = dn, dtf, el
             k = partner_slot(F, b, i, j, was_open | seen)
             if k < 0:
                 F.status[b] = S.SLOTS_FULL
@@ -143,7 +165,8 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
             else:
                 bit = 1 << k
                 book_contact(F, b, i, k, (was_open & bit) == 0, t, u, udot, slip, xi + ai, fn, dn, dtf)
-    return f, tq, diss, stored, bit
+                impact = is_impact(F, b, i, k, t)
+    return f, tq, diss_n, diss_t, impact, stored, bit
 
 
 @ti.func
@@ -157,6 +180,7 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
     f = ti.Vector([0.0, 0.0, 0.0])
     tq = ti.Vector([0.0, 0.0, 0.0])
     drive, diss, stored = 0.0, 0.0, 0.0
+    mech = ti.Vector.zero(ti.f64, S.NMECH)
     was_open = F.slot_mask[b, i]
     seen = 0
     for wall in ti.static(range(S.WALLS)):
@@ -179,11 +203,13 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
             stored += el
             seen |= 1 << wall
             book_contact(F, b, i, wall, (was_open & (1 << wall)) == 0, t, u, udot, slip, p, fn, dn, dtf)
+            mech = add_mechanism(mech, 1 + wall, is_impact(F, b, i, wall, t), dn, dtf)
     for q in range(F.nbr_count[b, i]):
-        fj, tj, dj, ej, bit = ball_pair(F, b, i, F.nbr[b, i, q], was_open, seen, t, w, dt)
+        fj, tj, dnj, dtj, impact, ej, bit = ball_pair(F, b, i, F.nbr[b, i, q], was_open, seen, t, w, dt)
         f += fj
         tq += tj
-        diss += dj
+        diss += dnj + dtj
+        mech = add_mechanism(mech, 0, impact, dnj, dtj)
         stored += ej
         seen |= bit
     close_events(F, b, i, was_open, seen, t)
@@ -191,4 +217,5 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
     F.tau[b, i] = tq
     F.drive_step[b, i] = drive
     F.diss_step[b, i] = diss
+    F.mech_step[b, i] = mech
     F.elastic[b, i] = stored

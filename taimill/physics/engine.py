@@ -15,7 +15,7 @@ import taichi as ti
 from taimill.physics import state as S
 from taimill.physics.neighbours import rebuild_parallel, rebuild_serial
 from taimill.physics.contacts import ball_forces
-from taimill.physics.frame import drive_at, wall_velocity_ground
+from taimill.physics.frame import drive_at, ramp_at, wall_velocity_ground
 from taimill.physics.integrator import integrate
 
 PAD = 512
@@ -32,7 +32,11 @@ def snapshot(F: ti.template(), b, t, dr):
     elastic energy, drive work, dissipation), J."""
     k = F.n_frames[b]
     F.frame_t[b, k] = t
+    om, _, phi_p = ramp_at(F.plate_ramp[b], t)
+    w, _, phi_j = ramp_at(F.jar_ramp[b], t)
+    F.frame_drive[b, k] = ti.Vector([phi_p, om, phi_j, w])  # DRIVE_FIELDS order
     ke, pe, el, dw, ds = 0.0, 0.0, 0.0, 0.0, 0.0
+    mech = ti.Vector.zero(ti.f64, S.NMECH)
     for i in range(F.n_balls[b]):
         x, v, s, m = F.x[b, i], F.v[b, i], F.s[b, i], F.m[b, i]
         F.frame_x[b, k, i] = x
@@ -44,12 +48,15 @@ def snapshot(F: ti.template(), b, t, dr):
         el += F.elastic[b, i]
         dw += F.drive_work[b, i]
         ds += F.dissipated[b, i]
+        mech += F.mech[b, i]
     row = ti.Vector.zero(ti.f64, S.NLEDGER)  # the schema's ledger columns, by name
     row[S.LEDGER["kinetic"]] = ke
     row[S.LEDGER["potential"]] = pe
     row[S.LEDGER["elastic"]] = el
     row[S.LEDGER["drive_work"]] = dw
     row[S.LEDGER["dissipated"]] = ds
+    for c in ti.static(range(S.NMECH)):
+        row[S.LEDGER[S.MECHANISM_COLUMNS[c]]] = mech[c]
     F.frame_ledger[b, k] = row
     F.n_frames[b] = k + 1
 
@@ -153,9 +160,12 @@ def export_events(F: ti.template(), b: ti.i32, n: ti.i32, out: ti.types.ndarray(
 
 @ti.kernel
 def export_frames(F: ti.template(), b: ti.i32, n: ti.i32, nb: ti.i32, t: ti.types.ndarray(),
-                  x: ti.types.ndarray(), v: ti.types.ndarray(), s: ti.types.ndarray(), ledger: ti.types.ndarray()):
+                  x: ti.types.ndarray(), v: ti.types.ndarray(), s: ti.types.ndarray(), ledger: ti.types.ndarray(),
+                  drive: ti.types.ndarray()):
     for k in range(n):
         t[k] = F.frame_t[b, k]
+        for c in ti.static(range(len(S.DRIVE_FIELDS))):
+            drive[k, c] = F.frame_drive[b, k][c]
         for c in ti.static(range(len(S.LEDGER_FIELDS))):
             ledger[k, c] = F.frame_ledger[b, k][c]
         for i in range(nb):
@@ -242,11 +252,13 @@ class Engine:
         t = np.zeros(nf)
         x, v, s = (np.zeros((nf, nb, 3)) for _ in range(3))
         ledger = np.zeros((nf, len(S.LEDGER_FIELDS)))
+        drive = np.zeros((nf, len(S.DRIVE_FIELDS)))
         if nf:
-            export_frames(F, b, nf, nb, t, x, v, s, ledger)
+            export_frames(F, b, nf, nb, t, x, v, s, ledger, drive)
         overflow = int(F.n_events[b]) > F.event_capacity
         F.n_events[b] = 0
         F.n_frames[b] = 0
         if overflow:
             raise RuntimeError(f"more than {self.margin} collision events ended in one step: event buffer overflow")
-        return {"time": t, "position": x, "velocity": v, "spin": s}, ev, ledger
+        frames = {"time": t, "position": x, "velocity": v, "spin": s}
+        return frames | {k: drive[:, c] for c, k in enumerate(S.DRIVE_FIELDS)}, ev, ledger

@@ -26,6 +26,8 @@ def write_mill(F, b: int, spec: MillSpec):
     F.jar_ramp[b] = spec.jar.as_tuple()
     F.frame_every[b] = spec.frame_every
     F.target[b] = spec.steps
+    F.stress_un[b] = spec.stress_min_un
+    F.impact_age[b] = spec.impact_age
     for ct, law in enumerate((spec.ball_ball, spec.ball_wall)):
         F.law[b, ct] = law.law_id
         F.law_k[b, ct] = law.k
@@ -59,7 +61,7 @@ def write_mill(F, b: int, spec: MillSpec):
         arr = field.to_numpy()
         arr[b] = 0.0
         field.from_numpy(arr)
-    for field in (F.drive_work, F.dissipated, F.elastic, F.drive_step, F.diss_step):
+    for field in (F.drive_work, F.dissipated, F.elastic, F.drive_step, F.diss_step, F.mech, F.mech_step):
         arr = field.to_numpy()
         arr[b] = 0.0
         field.from_numpy(arr)

@@ -8,7 +8,7 @@ kept apart from State (evolving). Shapes in brackets, SI units.
 import taichi as ti
 
 from taimill.model.geometry import PIECE_COLUMNS
-from taimill.schema import DERIVED_EVENT_COLUMNS, ENERGY_COLUMNS, EVENT_COLUMNS
+from taimill.schema import DERIVED_EVENT_COLUMNS, DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS, MECHANISM_COLUMNS
 
 # Contact slots per ball: 3 wall slots (side, floor, lid), then partner slots for the
 # ball-ball contacts this ball owns (partner index > own index). 12 = kissing number of
@@ -31,6 +31,10 @@ EV = {name: c for c, name in enumerate(EVENT_FIELDS)}  #: column of the kernel's
 LEDGER_FIELDS = tuple(k for k in ENERGY_COLUMNS if k != "time")
 LEDGER = {name: c for c, name in enumerate(LEDGER_FIELDS)}  #: column of the kernel's ledger record
 NLEDGER = len(LEDGER_FIELDS)
+# Dissipation by mechanism: index kind·4 + class·2 + part of the schema's MECHANISM_COLUMNS
+# (kinds: 0 ball-ball, 1 + wall index; classes: 0 impact, 1 persistent; parts: 0
+# normal, 1 friction).
+NMECH = len(MECHANISM_COLUMNS)
 
 # Verlet list length per ball (equal spheres within a skin of 0.1 r: at most ~14).
 NEIGHBOURS = 32
@@ -61,6 +65,9 @@ class Fields:
         self.jar_ramp = ti.Vector.field(5, f64, B)  #: w ramp, absolute jar spin
         self.frame_every = ti.field(i32, B)  #: steps between frames
         self.target = ti.field(i64, B)  #: step count to reach
+        # class of a contact for the mechanism ledger (taimill.model.mechanisms) [B]
+        self.stress_un = ti.field(f64, B)  #: m/s, least onset normal speed of an impact
+        self.impact_age = ti.field(f64, B)  #: s, an impact older than this is persistent
         # normal law per contact type [B, 2]: 0 ball-ball, 1 ball-wall
         self.law = ti.field(i32, (B, CONTACT_TYPES))
         self.law_k = ti.field(f64, (B, CONTACT_TYPES))  #: N/m^n
@@ -96,6 +103,8 @@ class Fields:
         self.diss_step = ti.field(f64, (B, N))  #: J, dissipated in its contacts this step
         self.drive_work = ti.field(f64, (B, N))  #: J, walls' work on this ball
         self.dissipated = ti.field(f64, (B, N))  #: J, in contacts this ball owns
+        self.mech_step = ti.Vector.field(NMECH, f64, (B, N))  #: J, this step's diss_step by mechanism
+        self.mech = ti.Vector.field(NMECH, f64, (B, N))  #: J, `dissipated` by mechanism
         self.elastic = ti.field(f64, (B, N))  #: J, stored now in contacts this ball owns
         self.step = ti.field(i64, B)
         self.status = ti.field(i32, B)
@@ -126,4 +135,5 @@ class Fields:
         self.frame_v = ti.field(vec3, (B, frame_capacity, N))
         self.frame_s = ti.field(vec3, (B, frame_capacity, N))
         self.frame_ledger = ti.Vector.field(len(LEDGER_FIELDS), f64, (B, frame_capacity))
+        self.frame_drive = ti.Vector.field(len(DRIVE_FIELDS), f64, (B, frame_capacity))  #: φ_p, Ω, φ_j, w
         self.n_frames = ti.field(i32, B)

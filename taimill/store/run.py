@@ -22,9 +22,13 @@ from functools import cached_property
 import numpy as np
 import zarr
 
-from taimill.schema import ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_COLUMNS, PER_BALL
+from taimill.schema import (DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_COLUMNS, MECHANISM_COLUMNS, PER_BALL,
+                            VELOCITY_CONVENTION)
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+# Columns a version-1 store lacks (read as absent from such a store): the frame's
+# drive and the dissipation by mechanism.
+ADDED_IN_2 = frozenset(DRIVE_FIELDS) | frozenset(MECHANISM_COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -58,7 +62,7 @@ def layout(n_balls: int) -> dict[str, dict[str, Column]]:
 
 
 TABLE_DESCRIPTIONS = {
-    "trajectory": "ball states at the output frame rate",
+    "trajectory": "ball states and the jar frame's angles and speeds at the output frame rate; velocities relative to the jar frame (attribute conventions)",
     "events": "one row per collision event (docs/outputs.md)",
     "energy": "cumulative energy ledger (J), one row per frame",
 }
@@ -185,6 +189,7 @@ class ZarrSink:
                 "n_balls": int(n_balls),
                 "radii": radii.tolist(),
                 "status": "running",
+                "conventions": VELOCITY_CONVENTION,
             }
         )
         self.tables = {
@@ -220,7 +225,10 @@ def committed_rows(group: zarr.Group, table: str) -> int:
     return int(group[table].attrs.get("n_valid", 0)) if table in group else 0
 
 
-def _read_table(group: zarr.Group, table: str, columns: dict[str, Column]) -> dict[str, np.ndarray]:
+def _read_table(group: zarr.Group, table: str, columns: dict[str, Column], version: int | None = None
+                ) -> dict[str, np.ndarray]:
+    if version is not None and version < 2 and table in group:
+        columns = {k: c for k, c in columns.items() if k not in ADDED_IN_2 or k in group[table]}
     n = committed_rows(group, table)
     if n == 0:
         return {k: np.zeros((0, *c.row_shape), dtype=c.dtype) for k, c in columns.items()}
@@ -276,7 +284,9 @@ class RunStore:
 
     @cached_property
     def frames(self) -> dict[str, np.ndarray]:
-        """time (F,) s; position, velocity, spin (F, N, 3) m, m/s, rad/s."""
+        """time (F,) s; position, velocity, spin (F, N, 3) m, m/s, rad/s (velocities
+        relative to the jar frame, see `conventions`); the jar frame's drive per frame:
+        plate_angle, jar_angle (rad), plate_speed, jar_spin (rad/s)."""
         return self._table("trajectory")
 
     @cached_property
@@ -290,7 +300,7 @@ class RunStore:
         return self._table("energy")
 
     def _table(self, name: str) -> dict[str, np.ndarray]:
-        return _read_table(self.group, name, layout(self.n_balls)[name])
+        return _read_table(self.group, name, layout(self.n_balls)[name], self.schema_version)
 
 
 def open_run(path_or_group) -> RunStore:

@@ -37,6 +37,9 @@ class EventStats:
         self.hist_ut = np.zeros((2, len(SPEED_BINS) - 1), dtype=np.int64)
         self.hist_se_n = np.zeros((2, len(ENERGY_BINS) - 1), dtype=np.int64)
         self.hist_se_t = np.zeros((2, len(ENERGY_BINS) - 1), dtype=np.int64)
+        # energy dissipated per event by the normal damper and by friction (J)
+        self.hist_diss_n = np.zeros((2, len(ENERGY_BINS) - 1), dtype=np.int64)
+        self.hist_diss_t = np.zeros((2, len(ENERGY_BINS) - 1), dtype=np.int64)
 
     def add(self, block: dict) -> None:
         t = block["t_start"]
@@ -50,14 +53,17 @@ class EventStats:
         for k in (0, 1):
             sel = kind == k
             for hist, col, bins in ((self.hist_un, "un", SPEED_BINS), (self.hist_ut, "ut", SPEED_BINS),
-                                    (self.hist_se_n, "se_n", ENERGY_BINS), (self.hist_se_t, "se_t", ENERGY_BINS)):
+                                    (self.hist_se_n, "se_n", ENERGY_BINS), (self.hist_se_t, "se_t", ENERGY_BINS),
+                                    (self.hist_diss_n, "dissipated_normal", ENERGY_BINS),
+                                    (self.hist_diss_t, "dissipated_friction", ENERGY_BINS)):
                 # out-of-range values (u̇ = 0, say) go to the end bins: every event counts
                 values = np.clip(block[col][keep][sel], bins[0], bins[-1])
                 hist[k] += np.histogram(values, bins=bins)[0]
 
     def result(self, tau: float, volume: float | None = None, n_balls: int | None = None) -> dict:
         """Summary over a window of length tau (s); volume (m³) adds the densities."""
-        out = {"estimator": "event", "min_un": self.min_un, "events_below_threshold": self.dropped}
+        name = f"stress events (onset u̇n ≥ {self.min_un * 1e3:g} mm/s)" if self.min_un > 0 else "all contacts"
+        out = {"estimator": "event", "counted": name, "min_un": self.min_un, "events_below_threshold": self.dropped}
         per = (lambda s: s / tau if tau > 0 else math.nan)
         n = int(self.count.sum())
         se_n, se_t = float(self.se_n.sum()), float(self.se_t.sum())

@@ -14,6 +14,7 @@ from taimill.analysis.sampled import SampledStats
 from taimill.analysis.spatial import RadialDensity, WallMap, contact_map
 from taimill.analysis.theory import critical_ratio, single_ball_hit
 from taimill.errors import ConfigError
+from taimill.model.mechanisms import STRESS_MIN_UN
 from taimill.store.run import RunStore, open_run
 from taimill.analysis.summary import EnergyLedger
 
@@ -32,6 +33,7 @@ class RunAnalysis:
     sampled: dict | None
     sampled_error: str | None = None
     contacts: dict = field(default_factory=dict)
+    all_contacts: EventStats | None = None  #: the event estimator over every event
 
     @property
     def tau(self) -> float:
@@ -48,6 +50,8 @@ class RunAnalysis:
             "analysis_window": [self.t0, self.t1],
             "ratio": g.ratio, "plate_rpm": g.drive.plate_rpm,
             "event_estimator": self.event.result(self.tau, g.volume, g.n_balls),
+            "all_contacts_estimator": self.all_contacts.result(self.tau, g.volume, g.n_balls) if self.all_contacts else {},
+            **{k: v for k, v in self.energy.items() if k.startswith(("dissipat", "main_sink"))},
             "sampled_estimator": self.sampled if self.sampled is not None else {"error": self.sampled_error},
             "dissipated_power": self.energy["dissipated_power"],
             "energy_balance_error": self.energy["energy_balance_error"],
@@ -61,10 +65,12 @@ class RunAnalysis:
         }
 
 
-def analyse(run, *, analysis_start: float | None = None, min_un: float = 0.0,
+def analyse(run, *, analysis_start: float | None = None, min_un: float = STRESS_MIN_UN,
             sampling_rate: float = 100.0, source: str = "command line") -> RunAnalysis:
-    """run: a path or RunStore. analysis_start (s) defaults to the run's; min_un (m/s)
-    drops chatter from the event estimator; sampling_rate (1/s) for the sampled one."""
+    """run: a path or RunStore. analysis_start (s) defaults to the run's; min_un (m/s):
+    the event estimator counts stress events, events with at least this onset normal
+    speed (model/mechanisms.py), and an all-contacts twin every event; sampling_rate
+    (1/s) for the sampled estimator."""
     store = run if isinstance(run, RunStore) else open_run(run)
     config = store.config
     if not config:
@@ -79,6 +85,8 @@ def analyse(run, *, analysis_start: float | None = None, min_un: float = 0.0,
         raise ConfigError(source, "--min-un", min_un, ">= 0 (m/s)")
     stats = EventStats(t0, t_end, min_un)
     stats.add(events)
+    every = EventStats(t0, t_end)
+    every.add(events)
     density = RadialDensity(geom, t0)
     density.add(frames)
     features = RegimeFeatures(geom, store.radii, t0)
@@ -101,7 +109,8 @@ def analyse(run, *, analysis_start: float | None = None, min_un: float = 0.0,
         error = str(err)
     return RunAnalysis(store=store, geom=geom, t0=t0, t1=t_end, event=stats, density=density,
                        regime=features.result(), wall=wall, energy=ledger.result(t_end - t0),
-                       sampled=sampled, sampled_error=error, contacts=contact_map(geom, events, t0))
+                       sampled=sampled, sampled_error=error, contacts=contact_map(geom, events, t0),
+                       all_contacts=every)
 
 
 def _stored_rate(times: np.ndarray, config: dict) -> float:

@@ -18,7 +18,8 @@ from taimill.analysis.regime import RegimeFeatures
 from taimill.analysis.rungeometry import RunGeometry
 from taimill.analysis.spatial import RadialDensity, WallMap
 from taimill.analysis.theory import critical_ratio, single_ball_hit
-from taimill.schema import ENERGY_COLUMNS
+from taimill.model.mechanisms import STRESS_MIN_UN
+from taimill.schema import ENERGY_COLUMNS, MECHANISM_CLASSES, MECHANISM_COLUMNS, MECHANISM_KINDS, MECHANISM_PARTS
 
 
 class EnergyLedger:
@@ -32,7 +33,7 @@ class EnergyLedger:
         self.scale = 0.0
 
     def add(self, block: dict) -> None:
-        rows = np.column_stack([block[k] for k in ENERGY_COLUMNS])
+        rows = np.column_stack([block[k] for k in ENERGY_COLUMNS if k in block])
         if self.first is None:
             self.first = rows[0]
         if self.window is None and (rows[:, 0] >= self.t0).any():
@@ -52,8 +53,31 @@ class EnergyLedger:
                     "energy_balance_worst": math.nan, "drive_work": math.nan}
         diss = (self.last[5] - self.window[5]) / tau if (tau > 0 and self.window is not None) else math.nan
         rel = (lambda x: x / self.scale if self.scale > 0 else math.nan)
-        return {"dissipated_power": float(diss), "energy_balance_error": float(rel(abs(self.imbalance(self.last)))),
-                "energy_balance_worst": float(rel(self.worst)), "drive_work": float(self.last[4])}
+        out = {"dissipated_power": float(diss), "energy_balance_error": float(rel(abs(self.imbalance(self.last)))),
+               "energy_balance_worst": float(rel(self.worst)), "drive_work": float(self.last[4])}
+        if len(self.last) == len(ENERGY_COLUMNS) and self.window is not None and tau > 0:
+            first = len(ENERGY_COLUMNS) - len(MECHANISM_COLUMNS)
+            out.update(mechanism_powers((self.last[first:] - self.window[first:]) / tau))
+        return out
+
+
+def mechanism_powers(power: np.ndarray) -> dict:
+    """Summary keys of the dissipated power by mechanism (W), from one value per
+    schema MECHANISM_COLUMNS entry: the nested table, its sums by class, part and kind,
+    and the largest single mechanism (`main_sink`) with its share."""
+    p = np.asarray(power, dtype=float).reshape(len(MECHANISM_KINDS), len(MECHANISM_CLASSES), len(MECHANISM_PARTS))
+    out = {"dissipation_by_mechanism": {k: {c: {q: float(p[i, j, l]) for l, q in enumerate(MECHANISM_PARTS)}
+                                            for j, c in enumerate(MECHANISM_CLASSES)}
+                                        for i, k in enumerate(MECHANISM_KINDS)}}
+    out.update({f"dissipated_power_{c}": float(p[:, j].sum()) for j, c in enumerate(MECHANISM_CLASSES)})
+    out.update({f"dissipated_power_{q}": float(p[..., l].sum()) for l, q in enumerate(MECHANISM_PARTS)})
+    out.update({f"dissipated_power_{k}": float(p[i].sum()) for i, k in enumerate(MECHANISM_KINDS)})
+    total = float(p.sum())
+    i, j, l = np.unravel_index(int(np.argmax(p)), p.shape)
+    where = "ball-ball contacts" if MECHANISM_KINDS[i] == "ball_ball" else f"contacts with the {MECHANISM_KINDS[i]}"
+    out["main_sink"] = {"mechanism": f"{MECHANISM_PARTS[l]} in {MECHANISM_CLASSES[j]} {where}",
+                        "power": float(p[i, j, l]), "share": float(p[i, j, l] / total) if total > 0 else math.nan}
+    return out
 
 
 class SummarySink:
@@ -61,13 +85,16 @@ class SummarySink:
 
     analysis_start, duration: s. The geometry comes from the config given to start();
     the jar and ball radii arguments are accepted for older callers and not needed.
-    min_un: m/s, events with a smaller onset normal speed are left out (chatter)."""
+    min_un: m/s, the headline statistics count stress events, events with at least
+    this onset normal speed (model/mechanisms.py); `all_contacts` counts every event."""
 
-    def __init__(self, analysis_start: float, duration: float, jar_radius=None, ball_radius=None, *, min_un: float = 0.0):
+    def __init__(self, analysis_start: float, duration: float, jar_radius=None, ball_radius=None, *,
+                 min_un: float = STRESS_MIN_UN):
         self.t0, self.duration, self.min_un = analysis_start, duration, min_un
         self.events_total = 0
         self.ledger = EnergyLedger(analysis_start)
         self.stats = EventStats(analysis_start, min_un=min_un)
+        self.all_contacts = EventStats(analysis_start)
 
     def start(self, config, n_balls, radii):
         self.geom = RunGeometry.from_config(config, radii)
@@ -79,6 +106,7 @@ class SummarySink:
     def events(self, block):
         self.events_total += len(block["t_start"])
         self.stats.add(block)
+        self.all_contacts.add(block)
         self.regime.events(block)
         self.wall.add(block)
 
@@ -96,6 +124,7 @@ class SummarySink:
         tau = max(sim_seconds - self.t0, 0.0)
         g = self.geom
         out = self.stats.result(tau, g.volume, self.n_balls)
+        out["all_contacts"] = self.all_contacts.result(tau, g.volume, self.n_balls)
         out["events_total"] = self.events_total
         out.update(self.ledger.result(tau))
         out["randomness_index"] = self.density.randomness_index

@@ -61,7 +61,23 @@ def summary_table(s: dict) -> str:
     rows = [(label, _fmt(s.get(key), scale), unit) for key, label, unit, scale in SUMMARY_ROWS if key in s]
     w = max(len(r[0]) for r in rows)
     text = "\n".join(f"{label:<{w}}  {value:>12} {unit}" for label, value, unit in rows)
-    return text + _hot_spot_line(s.get("wear_hot_spot") or {})
+    return _counted_line(s) + text + _main_sink_line(s.get("main_sink") or {}) + _hot_spot_line(s.get("wear_hot_spot") or {})
+
+
+def _counted_line(s: dict) -> str:
+    """What the stress-energy rows count, and the all-contacts figures beside them."""
+    if "counted" not in s:
+        return ""
+    a = s.get("all_contacts") or {}
+    every = (f"; all contacts: {a['events']} events, mean SE {_fmt(a.get('mean_se'), 1e3)} mJ"
+             if a.get("events") is not None else "")
+    return f"stress-energy rows count {s['counted']}{every}\n"
+
+
+def _main_sink_line(m: dict) -> str:
+    if not m.get("mechanism"):
+        return ""
+    return f"\nmain sink: {m['mechanism']}, {m['power']:.4g} W ({m['share']:.0%} of the dissipated power)"
 
 
 def _hot_spot_line(h: dict) -> str:

@@ -7,12 +7,15 @@ import json
 import math
 from pathlib import Path
 
+from taimill.model.mechanisms import STRESS_MIN_UN
+
 
 def _add_analysis_options(p):
     p.add_argument("run", help="run store written by `taimill run --out` (RUN.zarr)")
     p.add_argument("--analysis-start", type=float, help="start of the analysis window (s; default: the run's)")
-    p.add_argument("--min-un", type=float, default=0.0,
-                   help="event estimator: ignore events with onset normal speed below this (mm/s), e.g. 10 to drop chatter")
+    p.add_argument("--min-un", type=float, default=STRESS_MIN_UN * 1e3,
+                   help=f"stress events: events with at least this onset normal speed (mm/s, default "
+                        f"{STRESS_MIN_UN * 1e3:g}); 0 counts every contact (the all-contacts column always does)")
     p.add_argument("--sampling-rate", type=float, default=100.0,
                    help="sampled (thesis §3.3, MSC.Adams-like) estimator: output samples per second (default 100)")
 
@@ -84,10 +87,10 @@ def _f(v, scale=1.0, unit=""):
 
 
 def text_report(q: dict) -> str:
-    e, s = q["event_estimator"], q["sampled_estimator"]
+    e, s, a = q["event_estimator"], q["sampled_estimator"], q.get("all_contacts_estimator", {})
     lines = [f"status: {q['status']}; window {q['analysis_window'][0]:g}–{q['analysis_window'][1]:g} s; "
              f"K = {q['ratio']:.4g}, Ω = {q['plate_rpm']:.4g} rpm",
-             f"{'':34} {'event':>12} {s.get('estimator', 'sampled'):>16}"]
+             f"{'':34} {'stress events':>14} {'all contacts':>14} {s.get('estimator', 'sampled'):>16}"]
     rows = (("events (sampled: points)", "events", "points", 1, ""),
             ("impact power E_I/τ", "impact_power", "impact_power", 1, " W"),
             ("  normal", "impact_power_normal", "impact_power_normal", 1, " W"),
@@ -102,14 +105,20 @@ def text_report(q: dict) -> str:
             ("  ball–wall", "mean_se_ball_wall", "mean_se_ball_wall", 1e3, " mJ"),
             ("normal fraction", "normal_fraction", "normal_fraction", 1, ""))
     for label, ke, ks, scale, unit in rows:
-        lines.append(f"{label:34} {_f(e.get(ke), scale, unit):>12} {_f(s.get(ks), scale, unit):>16}")
+        lines.append(f"{label:34} {_f(e.get(ke), scale, unit):>14} {_f(a.get(ke), scale, unit):>14} "
+                     f"{_f(s.get(ks), scale, unit):>16}")
     if e.get("min_un"):
-        lines.append(f"event estimator ignores u̇n < {e['min_un'] * 1e3:g} mm/s ({e['events_below_threshold']} events)")
+        lines.append(f"stress events: onset u̇n ≥ {e['min_un'] * 1e3:g} mm/s ({e['events_below_threshold']} events below)")
+    if q.get("main_sink"):
+        m = q["main_sink"]
+        lines.append(f"dissipated in impacts {_f(q.get('dissipated_power_impact'), 1, ' W')}, in persistent contacts "
+                     f"{_f(q.get('dissipated_power_persistent'), 1, ' W')}; main sink: {m['mechanism']} "
+                     f"({_f(m['share'], 100, ' %')})")
     if "error" in s:
         lines.append(f"sampled estimator unavailable: {s['error']}")
     crit = ", ".join(f"{k} {v:.3f}" for k, v in q["regime_criteria"].items())
     h = q["wear_hot_spot"]
-    lines += [f"collision rate {_f(e.get('collision_rate'), 1, ' /s')}; dissipated power {_f(q['dissipated_power'], 1, ' W')}; "
+    lines += [f"stress-event rate {_f(e.get('collision_rate'), 1, ' /s')}; dissipated power {_f(q['dissipated_power'], 1, ' W')}; "
               f"energy balance error {_f(q['energy_balance_error'], 100, ' %')}",
               f"randomness index 1/σ {_f(q['randomness_index'])}",
               f"regime {q['regime']} (confidence {_f(q['regime_confidence'])}; {crit})",

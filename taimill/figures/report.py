@@ -88,7 +88,40 @@ def draw_se(ax, a: RunAnalysis):
 
 
 def _estimator(a: RunAnalysis) -> str:
-    return "event estimator" + (f", u̇n ≥ {a.event.min_un * MM:g} mm/s" if a.event.min_un > 0 else "")
+    return f"stress events, u̇n ≥ {a.event.min_un * MM:g} mm/s" if a.event.min_un > 0 else "all contacts"
+
+
+def draw_mechanisms(ax, a: RunAnalysis):
+    """Dissipated power by contact kind, class and part (the energy ledger's split)."""
+    table = a.energy.get("dissipation_by_mechanism")
+    if not table:
+        ax.text(0.5, 0.5, "no mechanism ledger in this store", ha="center", transform=ax.transAxes)
+        return
+    kinds = list(table)
+    bottom = np.zeros(len(kinds))
+    for (cls, part), colour in zip((("impact", "normal"), ("impact", "friction"), ("persistent", "normal"),
+                                    ("persistent", "friction")), ("C3", "C1", "C0", "C9")):
+        p = np.array([table[k][cls][part] for k in kinds])
+        ax.bar([k.replace("_", "–") for k in kinds], p, bottom=bottom, color=colour, label=f"{cls}, {part}")
+        bottom += p
+    m = a.energy["main_sink"]
+    ax.set(ylabel="dissipated power (W)", title=f"Where the power goes: {a.energy['dissipated_power']:.3g} W; "
+           f"main sink {m['mechanism']} ({m['share']:.0%})")
+    ax.title.set_fontsize(9)
+    ax.legend()
+
+
+def draw_dissipation_spectra(ax, a: RunAnalysis):
+    """Distribution of the energy each stress event dissipates, normal and by friction."""
+    centres = np.sqrt(ENERGY_BINS[1:] * ENERGY_BINS[:-1]) * MM
+    for hist, name, ls in ((a.event.hist_diss_n, "normal", "-"), (a.event.hist_diss_t, "friction (shear)", "--")):
+        for k, kind in enumerate(("ball–ball", "ball–wall")):
+            if hist[k].sum():
+                ax.plot(centres, log_pdf(hist[k], ENERGY_BINS), ls=ls, color=f"C{k}", label=f"{name}, {kind}")
+    ax.set(xscale="log", xlabel="energy dissipated per event (mJ)", ylabel="probability density (1/decade)",
+           title=f"Dissipated-energy spectra ({_estimator(a)})")
+    if ax.lines:
+        ax.legend()
 
 
 def draw_contact_map(ax, a: RunAnalysis, fig):
@@ -176,6 +209,8 @@ FIGURES = {
     "contact_map": "Ball–jar contact map: impact points on the unrolled side wall coloured by onset normal speed",
     "wear_map": "Wear map: normal impact energy plus friction work per unit wall area and time",
     "energy": "Energy budget over time: drive work, dissipation, mechanical energy, balance error",
+    "mechanisms": "Dissipated power by contact kind, class (impact or persistent) and part (normal or friction)",
+    "dissipation_spectra": "Distribution of the energy dissipated per stress event, normal and by friction, per kind",
     "overview": "Overview of the run",
 }
 
@@ -196,7 +231,8 @@ def write_report(a: RunAnalysis, out_dir, fmt: str = "png") -> list[Path]:
     draw_trajectories_section(t2, a)
     save("trajectories", fig)
     for name, draw in (("g_r", draw_gr), ("velocities", draw_velocity_pdfs), ("stress_energy", draw_se),
-                       ("energy", draw_energy)):
+                       ("energy", draw_energy), ("mechanisms", draw_mechanisms),
+                       ("dissipation_spectra", draw_dissipation_spectra)):
         fig, ax = plt.subplots(figsize=(5.5, 4), layout="constrained")
         draw(ax, a)
         save(name, fig)
@@ -212,8 +248,8 @@ def write_report(a: RunAnalysis, out_dir, fmt: str = "png") -> list[Path]:
 
 
 def overview(a: RunAnalysis):
-    fig = plt.figure(figsize=(16, 15), layout="constrained")
-    gs = fig.add_gridspec(4, 3, height_ratios=(1, 1, 0.8, 1))
+    fig = plt.figure(figsize=(16, 19), layout="constrained")
+    gs = fig.add_gridspec(5, 3, height_ratios=(1, 1, 0.8, 1, 1))
     draw_trajectories_top(fig.add_subplot(gs[0, 0]), a)
     draw_gr(fig.add_subplot(gs[0, 1]), a)
     draw_velocity_pdfs(fig.add_subplot(gs[0, 2]), a)
@@ -222,10 +258,13 @@ def overview(a: RunAnalysis):
     draw_trajectories_section(fig.add_subplot(gs[1, 2]), a)
     draw_contact_map(fig.add_subplot(gs[2, :]), a, fig)
     draw_wear_map((fig.add_subplot(gs[3, 0]), fig.add_subplot(gs[3, 1]), fig.add_subplot(gs[3, 2])), a, fig)
+    draw_mechanisms(fig.add_subplot(gs[4, :2]), a)
+    draw_dissipation_spectra(fig.add_subplot(gs[4, 2]), a)
     q = a.quantities()
     e = q["event_estimator"]
+    sink = f" (main sink: {q['main_sink']['mechanism']})" if q.get("main_sink") else ""
     fig.suptitle(f"K = {a.geom.ratio:.3g}, Ω = {q['plate_rpm']:.4g} rpm — {q['regime']} "
                  f"(confidence {q['regime_confidence']:.2f}); ⟨SE⟩ = {e['mean_se'] * MM:.3g} mJ, "
-                 f"E_I/τ = {e['impact_power']:.3g} W ({_estimator(a)}); dissipated {q['dissipated_power']:.3g} W",
-                 fontsize=11)
+                 f"E_I/τ = {e['impact_power']:.3g} W, {e['collision_rate']:.4g} /s ({_estimator(a)}); "
+                 f"dissipated {q['dissipated_power']:.3g} W{sink}", fontsize=11)
     return fig

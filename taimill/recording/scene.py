@@ -56,8 +56,9 @@ SERIES = {
     "mean_se/total": ("mean stress energy", "total", "J"),
     "mean_se/normal": ("mean stress energy", "normal", "J"),
     "mean_se/tangential": ("mean stress energy", "tangential", "J"),
-    "collision_rate": ("collision rate", "events/s", "1/s"),
+    "collision_rate": ("stress-event rate", "events/s", "1/s"),
     "dissipated_power": ("dissipated power", "dissipated", "W"),
+    "dissipated_power_persistent": ("dissipated power", "in persistent contacts", "W"),
     "kinetic_energy": ("kinetic energy", "ground frame", "J"),
     "energy_balance_error": ("energy balance error", "relative", "-"),
 }

@@ -23,6 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from taimill.model.mechanisms import STRESS_MIN_UN
+from taimill.schema import MECHANISM_COLUMNS
+
 HIST_LOG10_RANGE = (-4.0, 1.0)  # log10(m/s): 0.1 mm/s to 10 m/s
 HIST_BINS = 25  # 0.2 decade per bin
 
@@ -46,13 +49,20 @@ def window_rates(events: dict[str, np.ndarray], ledger: dict[str, np.ndarray], t
                  window: float, t_origin: float) -> dict[str, np.ndarray]:
     """Series name -> values at `times` (s) over windows of `window` s cut at `t_origin`.
 
-    events: t_start (s), se_n, se_t (J). ledger: time (s), kinetic, dissipated (J),
-    covering every T - W and T (linear interpolation between rows)."""
+    events: t_start (s), un (m/s), se_n, se_t (J); the stress-energy series count
+    stress events (onset u̇n ≥ STRESS_MIN_UN). ledger: time (s), kinetic, dissipated and
+    its mechanism columns (J), covering every T - W and T (linear interpolation)."""
     length = np.minimum(window, times - t_origin)
-    s = window_sums(events["t_start"], {"se_n": events["se_n"], "se_t": events["se_t"]}, times, length)
+    stress = events["un"] >= STRESS_MIN_UN
+    s = window_sums(events["t_start"][stress], {"se_n": events["se_n"][stress], "se_t": events["se_t"][stress]},
+                    times, length)
+    persistent = sum(ledger[k] for k in MECHANISM_COLUMNS if "_persistent_" in k)
+
+    def gain(cumulative):  # J over each window
+        return np.interp(times, ledger["time"], cumulative) - np.interp(times - length, ledger["time"], cumulative)
+
     with np.errstate(invalid="ignore", divide="ignore"):
-        dissipated = (np.interp(times, ledger["time"], ledger["dissipated"])
-                      - np.interp(times - length, ledger["time"], ledger["dissipated"]))
+        dissipated = gain(ledger["dissipated"])
         return {
             "impact_power/normal": s["se_n"] / length,
             "impact_power/tangential": s["se_t"] / length,
@@ -61,6 +71,7 @@ def window_rates(events: dict[str, np.ndarray], ledger: dict[str, np.ndarray], t
             "mean_se/tangential": s["se_t"] / s["count"],
             "collision_rate": s["count"] / length,
             "dissipated_power": dissipated / length,
+            "dissipated_power_persistent": gain(persistent) / length,
             "kinetic_energy": np.interp(times, ledger["time"], ledger["kinetic"]),
         }
 

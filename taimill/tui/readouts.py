@@ -20,8 +20,9 @@ ROWS = tuple((key, label, *_UNITS[key]) for key, label in (
     ("impact_power_normal", "  normal"),
     ("impact_power_tangential", "  tangential"),
     ("mean_se", "mean SE"),
-    ("collision_rate", "collision rate"),
+    ("collision_rate", "stress events"),
     ("dissipated_power", "dissipated power"),
+    ("dissipated_power_persistent", "  persistent"),
     ("energy_balance_error", "energy balance err"),
 ))
 

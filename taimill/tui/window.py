@@ -20,8 +20,10 @@ from taimill.analysis.rungeometry import RunGeometry
 from taimill.analysis.theory import critical_ratio
 from taimill.store.sinks import Relay
 from taimill.analysis.summary import EnergyLedger
+from taimill.model.mechanisms import STRESS_MIN_UN
+from taimill.schema import MECHANISM_COLUMNS
 
-CUMULATIVE = ("drive_work", "dissipated")
+CUMULATIVE = ("drive_work", "dissipated", *MECHANISM_COLUMNS)
 
 
 def rebased(block: dict, origin: dict) -> dict:
@@ -100,7 +102,7 @@ class WindowStats:
         t1 = float(energy["time"][-1])
         t0 = max(t1 - self.seconds, float(energy["time"][0]))
         tau = t1 - t0
-        stats, ledger = EventStats(t0), EnergyLedger(t0)
+        stats, ledger = EventStats(t0, min_un=STRESS_MIN_UN), EnergyLedger(t0)
         features = RegimeFeatures(self.geom, self.radii, t0) if regime else None
         events = self._table(self._events, t0, "t_start")
         if events is not None:

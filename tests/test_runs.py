@@ -28,6 +28,9 @@ def physical_checks(preset, sink, summary):
     assert (x[..., 2] >= r - slack).all() and (x[..., 2] <= preset.jar.height - r + slack).all()
     assert summary["status"] == "complete"
     assert summary["energy_balance_error"] < 0.01
+    parts = summary["dissipation_by_mechanism"]
+    total = sum(p for kind in parts.values() for cls in kind.values() for p in cls.values())
+    assert total == pytest.approx(summary["dissipated_power"], rel=0.01)  # rounding only
 
 
 @pytest.mark.parametrize("path", PRESETS, ids=[p.stem for p in PRESETS])

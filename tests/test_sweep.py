@@ -1,6 +1,8 @@
 """Sweeps (`taimill sweep`): planning and validation, sweep points bit-identical to `taimill run`
 on local spawned processes and on a real dask LocalCluster, resuming, replicas' bands,
-refinement of a maximum, sweep figures and the measured-data overlay."""
+the replicas' regimes (a K whose replicas disagree flagged in the table and the JSON),
+refinement of a maximum, sweep figures and
+the measured-data overlay."""
 
 import contextlib
 import io
@@ -20,7 +22,7 @@ from taimill.store.run import ZarrSink, open_run
 from taimill.runs.sweep import auto_batch, chunks, parse_values, refine
 from taimill.runs.executors import Job, PointResult
 from taimill.figures.sweep import band, read_overlay, report_sweep
-from taimill.analysis.sweep import mean_band, parabolic_peak, t_quantile
+from taimill.analysis.sweep import REGIMES, mean_band, parabolic_peak, regime_fractions, t_quantile
 from taimill.store.sweep import SweepStore, is_sweep, open_sweep
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -228,6 +230,52 @@ def test_refine_locates_a_skewed_maximum():
     (peak,) = peaks
     assert peak["method"] == "parabola" and peak["ratio"] == pytest.approx(true_peak, abs=0.01)
     assert parabolic_peak([0, -1, -2], [3, 2, 1])["method"] == "edge"
+
+
+# ---------------------------------------------------------------- regimes of the replicas
+def _bistable_table():
+    """A hand-made sweep table, two curves (Ω = 200, 300 rpm), one row per point x
+    replica. At Ω = 200, K = -2.4 the replicas disagree (2 cataracting, 1 pinned to
+    the wall); at 300 rpm one replica is not classified ("" is the store's fill)."""
+    rows = [(200.0, -2.4, "cataracting", 5e-3), (200.0, -2.4, "rolling", 1e-3), (200.0, -2.4, "cataracting", 6e-3),
+            (200.0, -2.6, "rolling", 1e-3), (200.0, -2.6, "rolling", 2e-3), (200.0, -2.6, "rolling", 1.5e-3),
+            (300.0, -2.4, "cataracting", 9e-3), (300.0, -2.4, "", 8e-3)]
+    rpm, k, regime, se = (np.array(c) for c in zip(*rows))
+    n = len(rows)
+    return {"point": np.arange(n), "jar": np.array(["CY"] * n), "balls": np.full(n, 12), "pair": np.array(["steel-steel"] * n),
+            "plate_rpm": rpm, "ratio": k, "regime": regime, "mean_se": se}
+
+
+def test_regime_fractions_flag_a_k_whose_replicas_disagree():
+    got = regime_fractions(_bistable_table())
+    assert [(g["plate_rpm"], g["ratio"], g["replicas"], g["bistable"]) for g in got] == [
+        (200.0, -2.6, 3, False), (200.0, -2.4, 3, True), (300.0, -2.4, 2, False)]
+    assert got[0]["regime_fractions"] == {"cascading": 0.0, "cataracting": 0.0, "rolling": 1.0}
+    assert got[1]["regime_fractions"] == {"cascading": 0.0, "cataracting": pytest.approx(2 / 3), "rolling": pytest.approx(1 / 3)}
+    assert got[2]["regime_fractions"] == {"cascading": 0.0, "cataracting": 0.5, "rolling": 0.0, "unknown": 0.5}
+    assert {k: got[1][k] for k in ("jar", "balls", "pair")} == {"jar": "CY", "balls": 12, "pair": "steel-steel"}
+
+
+def test_sweep_json_and_table_give_the_regimes_of_the_replicas(local_sweep):
+    # End to end (2 replicas of 0.3 s per K): every row carries its K's shares, which
+    # are the counts of the replicas' own regimes; the printed table lists each K once.
+    path, rows = local_sweep
+    for r in rows:
+        same = [s["regime"] for s in rows if s["ratio"] == r["ratio"]]  # one curve
+        assert len(same) == 2 and set(REGIMES) <= set(r["regime_fractions"])
+        assert r["regime_fractions"] == {lab: same.count(lab) / 2 for lab in r["regime_fractions"]}
+        assert r["bistable"] == (len(set(same) - {"unknown"}) > 1)
+    res = taimill(*SWEEP, "--out", path)  # resumes a finished sweep: nothing runs
+    assert res.returncode == 0, res.stderr
+    header, *lines = res.stdout.split("regimes of the replicas")[1].splitlines()[1:]
+    labels = header.split()[7:-1]  # jar balls pair Ω rpm K replicas <regimes…> bistable
+    printed = {float(f[4]): (int(f[5]), dict(zip(labels, map(float, f[6:-1]))), f[-1])
+               for f in map(str.split, lines) if len(f) == len(labels) + 7}
+    assert sorted(printed) == sorted({r["ratio"] for r in rows})
+    for r in rows:
+        n, shares, bistable = printed[r["ratio"]]
+        assert n == 2 and bistable == ("yes" if r["bistable"] else "no")
+        assert shares == {lab: pytest.approx(f, abs=0.005) for lab, f in r["regime_fractions"].items()}
 
 
 # ---------------------------------------------------------------- figures

@@ -1,6 +1,7 @@
-"""Statistics of a sweep: replicate means with Student-t confidence bands, and the rule
-`--refine` uses to locate the maximum of a figure of merit along K. NumPy and math
-only (scipy is not a dependency)."""
+"""Statistics of a sweep: replicate means with Student-t confidence bands, the share of
+the replicas in each motion regime at each K, and the rule `--refine` uses to locate
+the maximum of a figure of merit along K. NumPy and math only (scipy is not a
+dependency)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,8 @@ import math
 import numpy as np
 
 CONFIDENCE = 0.95
+CURVE_COLUMNS = ("jar", "balls", "pair", "plate_rpm")  # table columns telling curves apart
+REGIMES = ("cascading", "cataracting", "rolling")  # taimill.analysis.regime's labels
 
 
 def t_two_sided_cdf(t: float, nu: int) -> float:
@@ -66,6 +69,30 @@ def group_mean(ks, values) -> tuple[np.ndarray, np.ndarray]:
     uk = np.unique(np.round(ks, 10))
     means = np.array([mean_band(values[np.isclose(ks, k, rtol=0, atol=1e-9)])[0] for k in uk])
     return uk, means
+
+
+def regime_fractions(table) -> list[dict]:
+    """Share of the replicas in each motion regime, per curve and K of a sweep table
+    (a mapping of columns as in the sweep store, one row per point × replica; uses
+    CURVE_COLUMNS, `ratio` and `regime`). One entry per curve (in order of first
+    appearance) and K (ascending, rounded to 10 decimals):
+    {jar, balls, pair, plate_rpm, ratio, replicas (count), regime_fractions
+    ({label: share in [0, 1]}, always the three REGIMES, plus any other label seen,
+    e.g. "unknown"), bistable}. `bistable` is true when the replicas end in more than
+    one regime ("unknown" aside): their mean then mixes distinct states of the mill."""
+    ks = np.round(np.asarray(table["ratio"], dtype=float), 10)
+    labels = [str(v) or "unknown" for v in table["regime"]]
+    curves = list(zip(*(np.asarray(table[c]).tolist() for c in CURVE_COLUMNS)))
+    out = []
+    for curve in dict.fromkeys(curves):
+        on_curve = np.array([c == curve for c in curves])
+        for k in np.unique(ks[on_curve]):
+            seen = [lab for lab, here in zip(labels, on_curve & (ks == k)) if here]
+            shares = {lab: seen.count(lab) / len(seen) for lab in (*REGIMES, *sorted(set(seen) - set(REGIMES)))}
+            out.append(dict(zip(CURVE_COLUMNS, curve)) | {
+                "ratio": float(k), "replicas": len(seen), "regime_fractions": shares,
+                "bistable": len(set(seen) - {"unknown"}) > 1})
+    return out
 
 
 def _best(uk, means) -> int | None:

@@ -1,6 +1,7 @@
 """`taimill sweep PRESET --ratio A:B:STEP …`: the cartesian product of the
 swept values, R replicas per point, batched mills on local processes or a dask cluster,
-an optional refinement of the maximum, a sweep store and a table or JSON."""
+an optional refinement of the maximum, a sweep store and a table or JSON (with the
+share of the replicas in each regime at every K)."""
 
 from __future__ import annotations
 
@@ -20,6 +21,8 @@ COLUMNS = (("point", "point", 1, "d"), ("jar", "jar", None, "s"), ("balls", "bal
            ("mean_se", "SE mJ", 1e3, ".4g"), ("mean_se_normal", "SE_n mJ", 1e3, ".4g"),
            ("mean_se_tangential", "SE_t mJ", 1e3, ".4g"), ("impact_power", "P_I W", 1, ".4g"),
            ("randomness_index", "1/σ", 1, ".3g"), ("regime", "regime", None, "s"), ("wall_seconds", "wall s", 1, ".1f"))
+GROUP_COLUMNS = (("jar", "jar", None, "s"), ("balls", "balls", 1, "d"), ("pair", "pair", None, "s"),
+                 ("plate_rpm", "Ω rpm", 1, "g"), ("ratio", "K", 1, "g"), ("replicas", "replicas", 1, "d"))
 
 
 def register(subparsers) -> None:
@@ -51,7 +54,8 @@ def register(subparsers) -> None:
     x.add_argument("--scheduler", metavar="ADDRESS", help="dask.distributed scheduler, e.g. tcp://host:8786")
     s.add_argument("--out", help="sweep store to write (SWEEP.zarr); the same command resumes it")
     s.add_argument("--overwrite", action="store_true", help="replace an existing --out store")
-    s.add_argument("--json", action="store_true", help="print a JSON list of the points' summaries with the swept values")
+    s.add_argument("--json", action="store_true", help="print a JSON list of the points' summaries with the swept values and their K's "
+                   "regime_fractions and bistable (replicas in different regimes)")
     s.set_defaults(fn=cmd_sweep)
 
 
@@ -101,12 +105,16 @@ def cmd_sweep(a) -> int:
             rows, peaks = run_sweep(req, store, progress=lambda d, t: bar.update(task, completed=d, total=t), **run_kw)
     else:
         rows, peaks = run_sweep(req, store, **run_kw)
+    rows, groups = with_regimes(rows)
     if a.json:
         print(json.dumps([_plain(r) for r in rows]))
         for p in peaks:
             print(peak_line(p), file=sys.stderr)
         return 0
     print(table(rows))
+    if max(g["replicas"] for g in groups) > 1:
+        print("\nregimes of the replicas (share per K; bistable: they end in different regimes, so their mean mixes states)")
+        print(regime_table(groups))
     for p in peaks:
         print(peak_line(p))
     if a.out:
@@ -114,8 +122,32 @@ def cmd_sweep(a) -> int:
     return 0
 
 
-def table(rows: list[dict]) -> str:
-    cols = [c for c in COLUMNS if any(c[0] in r for r in rows)]
+def with_regimes(rows: list[dict]) -> tuple[list[dict], list[dict]]:
+    """(each row with `regime_fractions` and `bistable` of its curve and K, the groups
+    of taimill.analysis.sweep.regime_fractions over the rows in the rows' order)."""
+    import numpy as np
+
+    from taimill.analysis.sweep import CURVE_COLUMNS, regime_fractions
+
+    def key(r):  # K rounded as regime_fractions rounds it
+        return (*(r[c] for c in CURVE_COLUMNS), float(np.round(float(r["ratio"]), 10)))
+
+    groups = regime_fractions({c: [r.get(c, "") for r in rows] for c in (*CURVE_COLUMNS, "ratio", "regime")})
+    by_key = {key(g): g for g in groups}
+    ordered = [by_key[k] for k in dict.fromkeys(map(key, rows))]
+    return [r | {k: by_key[key(r)][k] for k in ("regime_fractions", "bistable")} for r in rows], ordered
+
+
+def regime_table(groups: list[dict]) -> str:
+    """One line per curve and K: replicas, share in each regime, bistable yes/no."""
+    labels = list(dict.fromkeys(lab for g in groups for lab in g["regime_fractions"]))
+    cols = GROUP_COLUMNS + tuple((lab, lab, 1, ".2f") for lab in labels) + (("bistable", "bistable", None, "s"),)
+    flat = [g | g["regime_fractions"] | {"bistable": "yes" if g["bistable"] else "no"} for g in groups]
+    return table(flat, cols)
+
+
+def table(rows: list[dict], columns=COLUMNS) -> str:
+    cols = [c for c in columns if any(c[0] in r for r in rows)]
     cells = [[_cell(r.get(k), scale, fmt) for k, _, scale, fmt in cols] for r in rows]
     widths = [max([len(h)] + [len(c[i]) for c in cells]) for i, (_, h, _, _) in enumerate(cols)]
     lines = ["  ".join(f"{h:>{w}}" for (_, h, _, _), w in zip(cols, widths))]

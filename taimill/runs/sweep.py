@@ -18,12 +18,11 @@ from dataclasses import dataclass
 
 from taimill.errors import ConfigError
 from taimill.runs.executors import Job, chunk_seconds, run_dask, run_local
-from taimill.analysis.sweep import parabolic_peak, refine_candidates
+from taimill.analysis.sweep import CURVE_COLUMNS, parabolic_peak, refine_candidates
 from taimill.store.sweep import SweepStore, scalars
 
 # Swept preset keys, outermost first (ratio innermost: a chunk holds neighbouring K).
 AXES = ("jar", "balls.count", "pair", "plate_rpm", "ratio")
-CURVE_AXES = ("jar", "balls", "pair", "plate_rpm")  # table columns telling curves apart
 MAX_POINTS = 10_000
 MAX_AUTO_BATCH = 16
 
@@ -206,7 +205,7 @@ def _py(v):
 
 
 def curve_of(row: dict) -> tuple:
-    return tuple(row[k] for k in CURVE_AXES)
+    return tuple(row[k] for k in CURVE_COLUMNS)
 
 
 def run_sweep(req: Request, store: SweepStore | None = None, **run_kw) -> tuple[list[dict], list[dict]]:
@@ -267,6 +266,6 @@ def peaks_by_curve(rows, metric: str) -> list[dict]:
     out = []
     for curve, rs in sorted(by_curve.items(), key=lambda kv: str(kv[0])):
         peak = parabolic_peak([r["ratio"] for r in rs], [r.get(metric, math.nan) for r in rs])
-        out.append(dict(zip(CURVE_AXES, curve)) | {"metric": metric} | peak)
+        out.append(dict(zip(CURVE_COLUMNS, curve)) | {"metric": metric} | peak)
     return out
 

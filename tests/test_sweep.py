@@ -1,7 +1,7 @@
 """Sweeps (`taimill sweep`): planning and validation, sweep points bit-identical to `taimill run`
 on local spawned processes and on a real dask LocalCluster, resuming, replicas' bands,
-the replicas' regimes (a K whose replicas disagree flagged in the table and the JSON),
-refinement of a maximum, sweep figures and
+the replicas' regimes (a K whose replicas disagree flagged in the table, the JSON and the
+figures), refinement of a maximum, sweep figures and
 the measured-data overlay."""
 
 import contextlib
@@ -21,7 +21,7 @@ from taimill.errors import ConfigError
 from taimill.store.run import ZarrSink, open_run
 from taimill.runs.sweep import auto_batch, chunks, parse_values, refine
 from taimill.runs.executors import Job, PointResult
-from taimill.figures.sweep import band, read_overlay, report_sweep
+from taimill.figures.sweep import band, mark_mixed, read_overlay, report_sweep
 from taimill.analysis.sweep import REGIMES, mean_band, parabolic_peak, regime_fractions, t_quantile
 from taimill.store.sweep import SweepStore, is_sweep, open_sweep
 
@@ -256,6 +256,22 @@ def test_regime_fractions_flag_a_k_whose_replicas_disagree():
     assert {k: got[1][k] for k in ("jar", "balls", "pair")} == {"jar": "CY", "balls": 12, "pair": "steel-steel"}
 
 
+def test_sweep_figure_rings_a_mixed_mean_and_draws_its_replicas():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    table = _bistable_table()
+    fig, ax = plt.subplots()
+    assert mark_mixed(ax, table, np.arange(6), "mean_se", 1e3, "C0") == {"cataracting", "rolling"}
+    drawn = {(float(x), round(float(y), 9), line.get_marker())
+             for line in ax.get_lines() for x, y in zip(line.get_xdata(), line.get_ydata())}
+    assert drawn == {(-2.4, 4.0, "o"), (-2.4, 5.0, "^"), (-2.4, 6.0, "^"), (-2.4, 1.0, "v")}  # only K = -2.4, in mJ
+    assert mark_mixed(ax, table, np.arange(6, 8), "mean_se", 1e3, "C1") == set()  # "unknown" is no disagreement
+    plt.close(fig)
+
+
 def test_sweep_json_and_table_give_the_regimes_of_the_replicas(local_sweep):
     # End to end (2 replicas of 0.3 s per K): every row carries its K's shares, which
     # are the counts of the replicas' own regimes; the printed table lists each K once.
@@ -287,7 +303,7 @@ def test_report_writes_figures_and_overlay_via_the_cli(local_sweep, tmp_path):
     assert res.returncode == 0, res.stderr
     names = sorted(Path(p).name for p in res.stdout.split())
     assert names == ["impact_power.png", "mean_se.png", "mean_se_components.png", "normal_fraction.png",
-                     "overlay.png", "randomness.png"]
+                     "overlay.png", "randomness.png", "regimes.png"]
     for p in res.stdout.split():
         assert Path(p).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and Path(p).stat().st_size > 10_000
     svg = report_sweep(path, tmp_path / "svg", "svg")

@@ -2,6 +2,10 @@
 thesis' Figs 3.7, 3.8, 4.5, 4.13, 5.1 and 5.5: figures against K = ω/Ω + 1, one curve
 per Ω / pair / jar / ball count, the replicas' mean with its 95 % Student-t band, the
 single-ball critical ratio K_c (docs/model.md) marked, the refined maximum starred.
+Where the replicas at a K end in different motion regimes (bistable, e.g. pinned to
+the wall or cataracting near the collapse) the mean is ringed and each replica drawn
+with its regime's marker; regimes.<fmt> shows the share of the replicas in each regime
+against K.
 
 `--overlay MEASURED.csv` draws a user's measured series against K on a second axis of
 the mean-SE figure (the thesis validates so, with 1/√⟨D⟩ and √ρ, Figs 3.9, 4.17).
@@ -29,7 +33,7 @@ import numpy as np
 
 from taimill.analysis.theory import critical_ratio
 from taimill.errors import ConfigError
-from taimill.analysis.sweep import mean_band
+from taimill.analysis.sweep import CURVE_COLUMNS, REGIMES, mean_band, regime_fractions
 
 CURVE_AXES = (("jar", "{}"), ("balls", "{:.0f} balls"), ("pair", "{}"), ("plate_rpm", "Ω = {:g} rpm"))
 # file stem, figure title, [(column, panel title)], y label, scale to the plotted unit
@@ -42,6 +46,8 @@ FIGURES = (
     ("normal_fraction", "Normal share of the stress energy", [("normal_fraction", "SE_n / SE")], "normal fraction", 1.0),
 )
 K_LABEL = "K = ω/Ω + 1 (jar spin / plate spin; |K| grows to the right)"
+REGIME_MARKERS = {"cascading": "s", "cataracting": "^", "rolling": "v"}  # any other label: "x"
+MIXED_LABEL = "mean over replicas in different regimes"
 
 
 def report_sweep(path, out_dir, fmt: str = "png", overlay=None) -> list[Path]:
@@ -66,6 +72,7 @@ def report_sweep(path, out_dir, fmt: str = "png", overlay=None) -> list[Path]:
     for stem, title, panels, ylabel, scale in FIGURES:
         fig = _figure(table, title, panels, ylabel, scale, peaks)
         written.append(_save(fig, out_dir / f"{stem}.{fmt}"))
+    written.append(_save(_regime_figure(table), out_dir / f"regimes.{fmt}"))
     if measured is not None:
         fig = _figure(table, f"Average stress energy and measured data ({Path(overlay).name})",
                       [("mean_se", "total")], "mean SE (mJ)", 1e3, peaks, measured)
@@ -100,12 +107,15 @@ def _figure(table, title, panels, ylabel, scale, peaks, measured=None):
     fig, axes = plt.subplots(1, len(panels), figsize=(6.4 * len(panels), 4.6), squeeze=False)
     groups = curves(table)
     for ax, (column, panel) in zip(axes[0], panels):
+        drawn: set[str] = set()
         for n, (label, rows) in enumerate(groups.items()):
             ks, mean, half = band(table, rows, column)
             color = f"C{n % 10}"
             ax.plot(ks, mean * scale, "o-", ms=3.5, color=color, label=label)
             if np.isfinite(half).any():
                 ax.fill_between(ks, (mean - half) * scale, (mean + half) * scale, color=color, alpha=0.2, lw=0)
+            drawn |= mark_mixed(ax, table, rows, column, scale, color)
+        _mixed_legend(ax, drawn)
         _mark_peaks(ax, peaks, column, scale)
         _mark_critical(ax, table)
         ax.set_title(panel, fontsize=10)
@@ -119,7 +129,73 @@ def _figure(table, title, panels, ylabel, scale, peaks, measured=None):
         ax.legend(fontsize=8, loc="upper left")
     if any(np.isfinite(band(table, r, panels[0][0])[2]).any() for r in groups.values()):
         title += " — mean of replicas, 95 % band"
+    if any(g["bistable"] for rows in groups.values() for g in regime_groups(table, rows)):
+        title += "; ringed: replicas in different regimes"
     fig.suptitle(title, fontsize=11)
+    fig.tight_layout()
+    return fig
+
+
+def regime_groups(table: dict, rows: np.ndarray) -> list[dict]:
+    """taimill.analysis.sweep.regime_fractions of the table's `rows` (one curve)."""
+    return regime_fractions({c: np.asarray(table[c])[rows] for c in (*CURVE_COLUMNS, "ratio", "regime")})
+
+
+def mark_mixed(ax, table, rows, column, scale, color) -> set[str]:
+    """At each K of the curve `rows` whose replicas end in different regimes: a ring
+    round the plotted mean and every replica's own value, marked by its regime.
+    Returns the regimes drawn."""
+    k = np.round(table["ratio"][rows].astype(float), 10)
+    y = table[column][rows].astype(float) * scale if column in table else np.full(len(rows), np.nan)
+    labels = np.array([str(v) or "unknown" for v in table["regime"][rows]])
+    ks, mean, _ = band(table, rows, column)
+    drawn = set()
+    for g in regime_groups(table, rows):
+        if not g["bistable"]:
+            continue
+        ax.plot([g["ratio"]], mean[ks == g["ratio"]] * scale, "o", ms=12, mfc="none", mec="k", mew=1.2, zorder=4)
+        for regime in sorted(set(labels[k == g["ratio"]])):
+            at = (k == g["ratio"]) & (labels == regime)
+            ax.plot(k[at], y[at], REGIME_MARKERS.get(regime, "x"), ms=5, mfc="none", mec=color, ls="none", zorder=4)
+            drawn.add(regime)
+    return drawn
+
+
+def _mixed_legend(ax, drawn: set[str]):
+    """Legend entries (grey proxies) for what mark_mixed drew on `ax`."""
+    if drawn:
+        ax.plot([], [], "o", ms=12, mfc="none", mec="k", mew=1.2, label=MIXED_LABEL)
+    for regime in sorted(drawn):
+        ax.plot([], [], REGIME_MARKERS.get(regime, "x"), ms=5, mfc="none", mec="0.4", ls="none",
+                label=f"replica ending {regime}")
+
+
+def _regime_figure(table):
+    """Share of the replicas in each regime against K: one panel per regime, one line
+    per curve, ringed where the replicas of a K disagree."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(REGIMES), figsize=(5.2 * len(REGIMES), 4.2), squeeze=False, sharey=True)
+    per_curve = {label: regime_groups(table, rows) for label, rows in curves(table).items()}
+    any_mixed = any(g["bistable"] for groups in per_curve.values() for g in groups)
+    for ax, regime in zip(axes[0], REGIMES):
+        for n, (label, groups) in enumerate(per_curve.items()):
+            share = np.array([g["regime_fractions"][regime] for g in groups])
+            ks = np.array([g["ratio"] for g in groups])
+            mixed = np.array([g["bistable"] for g in groups])
+            ax.plot(ks, share, "o-", ms=3.5, color=f"C{n % 10}", label=label)
+            ax.plot(ks[mixed], share[mixed], "o", ms=12, mfc="none", mec="k", mew=1.2, zorder=4)
+        if any_mixed:
+            ax.plot([], [], "o", ms=12, mfc="none", mec="k", mew=1.2, label="replicas in different regimes")
+        _mark_critical(ax, table)
+        ax.set_title(regime, fontsize=10)
+        ax.set_xlabel(K_LABEL, fontsize=9)
+        ax.set_ylim(-0.05, 1.05)
+        ax.invert_xaxis()
+        ax.grid(alpha=0.3)
+    axes[0][0].legend(fontsize=8, loc="best")
+    axes[0][0].set_ylabel("share of the replicas")
+    fig.suptitle("Motion regime of the replicas at each K (taimill.analysis.regime)", fontsize=11)
     fig.tight_layout()
     return fig
 

@@ -1,10 +1,11 @@
 """Sweeps (`taimill sweep`): planning and validation, sweep points bit-identical to `taimill run`
 on local spawned processes and on a real dask LocalCluster, resuming, replicas' bands,
-the replicas' regimes (a K whose replicas disagree flagged in the table, the JSON and the
-figures), refinement of a maximum, sweep figures and
+the replicas' regimes (a K whose replicas disagree flagged in the table, the JSON, the
+figures and scripts/reproduce_thesis.py), refinement of a maximum, sweep figures and
 the measured-data overlay."""
 
 import contextlib
+import importlib.util
 import io
 import json
 import math
@@ -292,6 +293,19 @@ def test_sweep_json_and_table_give_the_regimes_of_the_replicas(local_sweep):
         n, shares, bistable = printed[r["ratio"]]
         assert n == 2 and bistable == ("yes" if r["bistable"] else "no")
         assert shares == {lab: pytest.approx(f, abs=0.005) for lab, f in r["regime_fractions"].items()}
+
+
+def test_reproduce_thesis_replicates_the_collapse_and_reports_regimes(local_sweep):
+    spec = importlib.util.spec_from_file_location("reproduce_thesis", ROOT / "scripts" / "reproduce_thesis.py")
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    grid = parse_values("0:-4:0.2", "--ratio")
+    assert script.in_window(grid, script.REPLICATED["cy-steel"]) == [-2.2, -2.4, -2.6, -2.8, -3.0]
+    path, rows = local_sweep
+    regimes = script.regime_rows(script.Metrics({"cy-steel": path}, "event", 0.0), ["cy-steel"])
+    assert [(g["ratio"], g["replicas"]) for g in regimes] == [(k, 2) for k in sorted({r["ratio"] for r in rows})]
+    lines = script.regime_lines(regimes)
+    assert len(lines) == 2 + len(regimes) and all(f"| {g['ratio']:g} | 2 |" in ln for g, ln in zip(regimes, lines[2:]))
 
 
 # ---------------------------------------------------------------- figures

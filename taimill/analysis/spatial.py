@@ -19,7 +19,8 @@ class RadialDensity:
     can reach gives g ≡ 1. In a non-circular jar each shell's area is only its part
     inside that region (the thesis' 2π h r Δr is the circular case). The randomness
     index is 1/σ with σ the variance of the g histogram (thesis §3.2.3): larger = more
-    uniform, more random motion."""
+    uniform, more random motion. A centre pressed into the side wall lies beyond R − r
+    by its contact overlap (µm); it counts in the last shell."""
 
     def __init__(self, g: RunGeometry, t0: float = 0.0, bins: int = G_BINS):
         self.t0 = t0
@@ -29,7 +30,7 @@ class RadialDensity:
 
     def add(self, block: dict) -> None:
         x = block["position"][block["time"] >= self.t0]
-        rho = np.hypot(x[..., 0], x[..., 1]).ravel()
+        rho = np.minimum(np.hypot(x[..., 0], x[..., 1]).ravel(), self.edges[-1])
         self.hist += np.histogram(rho, bins=self.edges)[0]
 
     @property

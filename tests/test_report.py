@@ -69,7 +69,9 @@ def test_analyse_of_a_store_equals_the_live_summary(stored):
     # rates differ by < 1e-5 because the stored window ends at the last frame, one time
     # step before the live one.
     path, s = stored
-    q = analyse(path).quantities()
+    a = analyse(path)
+    q = a.quantities()
+    assert a.store.analysis_window == s["analysis_window"] and q["analysis_window"][0] == s["analysis_window"][0]
     e = q["event_estimator"]
     for key in ("events", "impact_power", "impact_power_normal", "mean_se", "mean_se_tangential", "normal_fraction"):
         assert e[key] == pytest.approx(s[key], rel=1e-5), key

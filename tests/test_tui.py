@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import rerun as rr
 
+from taimill.analysis.run import analyse
 from taimill.recording import scene
 from taimill.model.drive import RPM
 from taimill.model.params import ROOT, load_preset
@@ -159,6 +160,30 @@ async def test_record_rrd_and_zarr_mid_run(mill, tmp_path):
     lo, hi = max(times[0], frames[0]) - 1e-6, min(times[-1], frames[-1]) + 1e-6  # rerun keeps ns
     assert hi - lo >= 0.05
     np.testing.assert_allclose(times[(times >= lo) & (times <= hi)], frames[(frames >= lo) & (frames <= hi)], atol=1e-9)
+
+
+async def test_zarr_recording_is_analysed_over_its_own_window(tmp_path):
+    # Past the preset's analysis_start (4 s): the recording's window starts where the
+    # key was pressed. dt twice the automatic one (12 steps per contact) halves the
+    # 20 s of simulation before it.
+    mill = LiveMill(load_preset(P4, {"dt": 2 * load_preset(P4).dt}))
+    mill.advance(steps=int(20.01 / mill.dt))
+    app = MillApp(mill, out_dir=tmp_path, paused=True)
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.press("z")
+        await wait_until(pilot, lambda: app.recorders.active)
+        t_start = app.recorders.active["zarr"].t_start
+        await pilot.press("p")
+        await wait_until(pilot, lambda: mill.time > t_start + 0.3)
+        await pilot.press("z")
+        await wait_until(pilot, lambda: not app.recorders.active)
+    zarr, = tmp_path.glob("*.zarr")
+    a = analyse(zarr)
+    q, own = a.quantities(), a.store.summary
+    assert t_start >= 20.0 and q["analysis_window"][0] == own["analysis_window"][0] == t_start
+    assert q["event_estimator"]["collision_rate"] == pytest.approx(own["collision_rate"], rel=0.2)
+    shown = (a.store.frames["time"] >= a.t0) & (a.store.frames["time"] < a.t0 + 0.5)  # the report's trajectory panels
+    assert shown.sum() >= 20
 
 
 async def test_quit_closes_recordings_and_stops_the_worker(mill, tmp_path):

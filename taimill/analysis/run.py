@@ -67,10 +67,10 @@ class RunAnalysis:
 
 def analyse(run, *, analysis_start: float | None = None, min_un: float = STRESS_MIN_UN,
             sampling_rate: float = 100.0, source: str = "command line") -> RunAnalysis:
-    """run: a path or RunStore. analysis_start (s) defaults to the run's; min_un (m/s):
-    the event estimator counts stress events, events with at least this onset normal
-    speed (model/mechanisms.py), and an all-contacts twin every event; sampling_rate
-    (1/s) for the sampled estimator."""
+    """run: a path or RunStore. analysis_start (s) defaults to the start of the store's
+    own window (`window_start`); min_un (m/s): the event estimator counts stress events,
+    events with at least this onset normal speed (model/mechanisms.py), and an
+    all-contacts twin every event; sampling_rate (1/s) for the sampled estimator."""
     store = run if isinstance(run, RunStore) else open_run(run)
     config = store.config
     if not config:
@@ -78,7 +78,7 @@ def analyse(run, *, analysis_start: float | None = None, min_un: float = STRESS_
     geom = RunGeometry.from_config(config, store.radii)
     frames, events, energy = store.frames, store.events, store.energy
     t_end = float(frames["time"][-1]) if len(frames["time"]) else 0.0
-    t0 = geom.analysis_start if analysis_start is None else analysis_start
+    t0 = window_start(store, geom) if analysis_start is None else analysis_start
     if not 0 <= t0 < max(t_end, 1e-300):
         raise ConfigError(source, "--analysis-start", t0, f"[0, {t_end:g}) s, the stored run ends at {t_end:g} s")
     if min_un < 0:
@@ -111,6 +111,13 @@ def analyse(run, *, analysis_start: float | None = None, min_un: float = STRESS_
                        regime=features.result(), wall=wall, energy=ledger.result(t_end - t0),
                        sampled=sampled, sampled_error=error, contacts=contact_map(geom, events, t0),
                        all_contacts=every)
+
+
+def window_start(store: RunStore, geom: RunGeometry) -> float:
+    """Start (s) of the window the store's own summary covers: its `analysis_window`;
+    for a store whose writer never finished, the start its config implies."""
+    window = store.analysis_window
+    return float(window[0]) if window is not None else geom.analysis_start
 
 
 def _stored_rate(times: np.ndarray, config: dict) -> float:

@@ -26,7 +26,7 @@ class RunGeometry:
     plate_radius: float  #: m, R_p
     plate: Ramp  #: Ω(t), rad/s
     jar: Ramp  #: absolute jar spin w(t), rad/s
-    analysis_start: float  #: s
+    analysis_start: float  #: s, a TUI recording's start (`live_start_time`), else the preset's
     duration: float  #: s
 
     @classmethod
@@ -42,7 +42,8 @@ class RunGeometry:
             plate_radius=float(config["plate_radius"]),
             plate=plate,
             jar=spin,
-            analysis_start=float(config.get("analysis_start", 0.0)), duration=float(config.get("duration", math.inf)),
+            analysis_start=float(config.get("live_start_time", config.get("analysis_start", 0.0))),
+            duration=float(config.get("duration", math.inf)),
         )
 
     @property

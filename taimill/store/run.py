@@ -2,7 +2,7 @@
 
 Layout of one run group (docs/outputs.md):
 
-    attrs: schema_version, config, n_balls, radii (m), status, summary
+    attrs: schema_version, config, n_balls, radii (m), status, summary, analysis_window (s)
     trajectory/  time (F,) s; position, velocity, spin (F, N, 3) m, m/s, rad/s
     events/      one 1-D array per `EVENT_COLUMNS` entry
     energy/      one 1-D array per `ENERGY_COLUMNS` entry
@@ -215,9 +215,13 @@ class ZarrSink:
             table.flush()
 
     def finish(self, summary: dict, status: str) -> None:
-        """Flush, then record `summary` and `status` ("complete", "unstable: …", …)."""
+        """Flush, then record `summary`, `status` ("complete", "unstable: …", …) and
+        the summary's `analysis_window` ([start, end], s) as the store's own."""
         self.flush()
-        self.group.attrs.update({"summary": plain(summary, "summary"), "status": status})
+        attrs = {"summary": plain(summary, "summary"), "status": status}
+        if "analysis_window" in summary:
+            attrs["analysis_window"] = plain(summary["analysis_window"], "analysis_window")
+        self.group.attrs.update(attrs)
 
 
 def committed_rows(group: zarr.Group, table: str) -> int:
@@ -272,6 +276,11 @@ class RunStore:
     @property
     def status(self) -> str | None:
         return self.attrs.get("status")
+
+    @property
+    def analysis_window(self) -> list[float] | None:
+        """[start, end] (s) of the window the writer's summary covers; None before it finished."""
+        return self.attrs.get("analysis_window")
 
     @property
     def n_balls(self) -> int:

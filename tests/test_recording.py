@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import rerun as rr
 
+from taimill.model.mechanisms import STRESS_MIN_UN
 from taimill.recording import scene
 from taimill.recording.sink import RerunSink
 from taimill.recording.stats import hist_edges, onset_histogram, window_sums
@@ -97,15 +98,16 @@ def test_impacts_and_contact_map_are_the_store_events(run):
 
 
 def test_sliding_window_series_follow_the_events(run):
-    """At the last frame T the window is (T - min(1 s, T), T]: impact power and collision
-    rate recomputed from the stored events (float64 sums in another order: 1e-9 relative)."""
+    """At the last frame T the window is (T - min(1 s, T), T]: impact power and stress-event
+    rate recomputed from the stored stress events (onset u̇n ≥ STRESS_MIN_UN; float64 sums
+    in another order: 1e-9 relative)."""
     store, live, _ = run
     e = store.events
     t, normal = series(live, "impact_power/normal")
     np.testing.assert_allclose(t, store.frames["time"][1:], rtol=0, atol=NS)
     T = store.frames["time"][-1]  # exact, not rounded to ns
     length = min(1.0, T - store.frames["time"][0])
-    inside = (e["t_start"] > T - length) & (e["t_start"] <= T)
+    inside = (e["t_start"] > T - length) & (e["t_start"] <= T) & (e["un"] >= STRESS_MIN_UN)
     assert normal[-1] == pytest.approx(e["se_n"][inside].sum() / length, rel=1e-9)
     _, rate = series(live, "collision_rate")
     assert rate[-1] == pytest.approx(inside.sum() / length, rel=1e-9)
@@ -189,7 +191,7 @@ def test_sink_started_mid_run(run, tmp_path):
     t, normal = series(tmp_path / "mid.rrd", "impact_power/normal")
     np.testing.assert_allclose(t, f["time"][k + 1:], rtol=0, atol=NS)  # windows need a length > 0
     T, t0 = f["time"][-1], f["time"][k]
-    inside = late & (e["t_start"] > t0) & (e["t_start"] <= T)
+    inside = late & (e["t_start"] > t0) & (e["t_start"] <= T) & (e["un"] >= STRESS_MIN_UN)
     assert normal[-1] == pytest.approx(e["se_n"][inside].sum() / min(1.0, T - t0), rel=1e-9)
     _, err = series(tmp_path / "mid.rrd", "energy_balance_error")
     assert err[0] == 0.0 and err.max() < 0.01

@@ -88,8 +88,11 @@ def test_analyse_cli_json_and_threshold(stored):
     q = json.loads(r.stdout)
     e = q["event_estimator"]
     assert e["min_un"] == pytest.approx(0.01)
-    assert e["events"] + e["events_below_threshold"] == s["events"]
+    assert e["events"] + e["events_below_threshold"] == s["all_contacts"]["events"]
+    assert e["events"] == s["events"] and e["mean_se"] == pytest.approx(s["mean_se"])  # the run's headline
+    assert q["all_contacts_estimator"]["events"] == s["all_contacts"]["events"]
     assert e["events_below_threshold"] > 0
+    assert sum(q["dissipated_power_" + c] for c in ("impact", "persistent")) == pytest.approx(q["dissipated_power"])
     assert q["sampled_estimator"]["estimator"] == "sampled at 100/s"
 
 

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 import zarr
 
-from taimill.schema import ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_FIELDS, PER_BALL
-from taimill.store.run import ZarrSink, open_run, trim_to_valid
+from taimill.schema import DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_FIELDS, MECHANISM_COLUMNS, PER_BALL
+from taimill.store.run import SCHEMA_VERSION, ZarrSink, open_run, trim_to_valid
 
 N_BALLS = 3
 REPO = Path(__file__).resolve().parents[1]
@@ -74,7 +74,7 @@ def assert_tables_equal(got, expected):
 def test_round_trip_open_run(tmp_path):
     written = write_run(tmp_path / "run.zarr", np.random.default_rng(0), frame_chunk=8, event_chunk=32)
     run = open_run(tmp_path / "run.zarr")
-    assert (run.schema_version, run.status, run.config) == (1, "complete", CONFIG_OUT)
+    assert (run.schema_version, run.status, run.config) == (SCHEMA_VERSION, "complete", CONFIG_OUT)
     assert run.summary["events"] == 81 and np.isnan(run.summary["err"])
     np.testing.assert_array_equal(run.radii, [0.005, 0.005, 0.006])
     assert_tables_equal(run.frames, written["frames"])
@@ -87,7 +87,7 @@ def test_round_trip_open_run(tmp_path):
 def test_round_trip_plain_zarr(tmp_path):
     written = write_run(tmp_path / "run.zarr", np.random.default_rng(1), frame_chunk=8, event_chunk=32)
     g = zarr.open_group(tmp_path / "run.zarr", mode="r")
-    assert g.attrs["schema_version"] == 1 and g.attrs["status"] == "complete"
+    assert g.attrs["schema_version"] == SCHEMA_VERSION and g.attrs["status"] == "complete"
     assert g.attrs["config"] == CONFIG_OUT and g.attrs["n_balls"] == N_BALLS
     for table, columns in (("events", EVENT_COLUMNS), ("energy", ENERGY_COLUMNS)):
         assert g[table].attrs["n_valid"] == len(written[table][next(iter(columns))])
@@ -134,7 +134,7 @@ def test_small_blocks_buffered_until_chunk_full(tmp_path):
 WRITER = textwrap.dedent(
     """
     import numpy as np
-    from taimill.schema import ENERGY_COLUMNS, EVENT_COLUMNS
+    from taimill.schema import DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS
     from taimill.store.run import ZarrSink
 
     def rows(k0, n, dtype):
@@ -148,7 +148,7 @@ WRITER = textwrap.dedent(
         nf, ne = block % 5 + 1, 2 * (block % 7) + 1
         t = rows(f, nf, "f8")
         v = np.broadcast_to(t[:, None, None], (nf, {n}, 3))
-        sink.frames({{"time": t, "position": v, "velocity": -v, "spin": 2 * v}})
+        sink.frames({{"time": t, "position": v, "velocity": -v, "spin": 2 * v, **{{k: t for k in DRIVE_FIELDS}}}})
         sink.energy({{k: rows(f, nf, d) for k, (d, _, _) in ENERGY_COLUMNS.items()}})
         sink.events({{k: rows(e, ne, d) for k, (d, _, _) in EVENT_COLUMNS.items()}})
         f, e = f + nf, e + ne
@@ -253,3 +253,19 @@ def test_bad_shapes_and_dtypes_rejected(tmp_path):
         sink.energy({**energy_block(rng, 2), "time": np.zeros(3)})
     sink.finish({}, "complete")
     assert len(open_run(tmp_path / "run.zarr").events["kind"]) == 0
+
+
+def test_a_version_1_store_still_reads(tmp_path):
+    # Version-1 stores have no per-frame drive and no mechanism columns: readers skip them.
+    path = tmp_path / "v1.zarr"
+    written = write_run(path, np.random.default_rng(8))
+    g = zarr.open_group(path, mode="r+")
+    for name in DRIVE_FIELDS:
+        del g["trajectory"][name]
+    for name in MECHANISM_COLUMNS:
+        del g["energy"][name]
+    g.attrs["schema_version"] = 1
+    run = open_run(path)
+    assert set(run.frames) == set(FRAME_FIELDS) - set(DRIVE_FIELDS)
+    np.testing.assert_array_equal(run.frames["position"], written["frames"]["position"])
+    assert "dissipated" in run.energy and not set(MECHANISM_COLUMNS) & set(run.energy)

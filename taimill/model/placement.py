@@ -11,6 +11,7 @@ GAP = 1e-4  # m, clearance between balls and to the walls at t = 0
 
 
 LATTICE_ABOVE = 2000  # balls; beyond this random sequential addition is too slow
+BATCH = 256  # candidates drawn and wall-checked at once
 
 
 def random_placement(count: int, radius: float, profile: Profile, height: float, seed: int, source="preset") -> np.ndarray:
@@ -24,19 +25,22 @@ def random_placement(count: int, radius: float, profile: Profile, height: float,
     zlo, zhi = radius + GAP, height - radius - GAP
     pos = np.empty((count, 3))
     cell = 2 * radius + GAP
-    placed = 0
-    for _ in range(200 * count + 10000):
-        if placed == count:
-            break
-        rho = rmax * np.sqrt(rng.random())
-        phi = 2 * np.pi * rng.random()
-        p = np.array([rho * np.cos(phi), rho * np.sin(phi), zlo + (zhi - zlo) * rng.random()])
-        if profile_sdf(profile, p[:2])[0][0] < radius + GAP:
-            continue
-        if placed and (np.sum((pos[:placed] - p) ** 2, axis=1) < cell * cell).any():
-            continue
-        pos[placed] = p
-        placed += 1
+    placed, tries = 0, 200 * count + 10000
+    while placed < count and tries > 0:
+        # candidates in batches (the same PCG64 stream as one at a time), walls checked
+        # on the whole batch, overlaps one candidate after the other
+        u = rng.random((min(BATCH, tries), 3))
+        tries -= len(u)
+        rho, phi = rmax * np.sqrt(u[:, 0]), 2 * np.pi * u[:, 1]
+        cand = np.column_stack([rho * np.cos(phi), rho * np.sin(phi), zlo + (zhi - zlo) * u[:, 2]])
+        inside = profile_sdf(profile, cand[:, :2])[0] >= radius + GAP
+        for p in cand[inside]:
+            if placed == count:
+                break
+            if placed and (np.sum((pos[:placed] - p) ** 2, axis=1) < cell * cell).any():
+                continue
+            pos[placed] = p
+            placed += 1
     if placed < count:  # random addition jammed: staggered layers instead
         return lattice_placement(count, radius, profile, height, seed, source)
     return pos

@@ -40,9 +40,13 @@ def contact_response(F: ti.template(), b, ct: ti.template(), u, nrm, vrel, m_eff
 
 @ti.func
 def book_contact(F: ti.template(), b, i, k, is_new, t, u, udot, slip, p, fn, dn, dtf):
-    """Open (is_new) or update the event in slot k of ball i."""
+    """Open (is_new) or update the event in slot k of ball i. Returns the contact's
+    class for the mechanism ledger: an impact while its onset normal speed reaches the
+    stress-event threshold and it is younger than the impact age (model/mechanisms.py)."""
+    impact = False
     if is_new:
         F.slot[b, i, k] = ti.Vector([t, udot, slip.norm(), p[0], p[1], p[2], fn, u, dn, dtf])
+        impact = udot >= F.stress_un[b]
     else:
         q = F.slot[b, i, k]
         q[S.SLOT_FPEAK] = ti.max(q[S.SLOT_FPEAK], fn)
@@ -50,6 +54,8 @@ def book_contact(F: ti.template(), b, i, k, is_new, t, u, udot, slip, p, fn, dn,
         q[S.SLOT_DN] += dn
         q[S.SLOT_DT] += dtf
         F.slot[b, i, k] = q
+        impact = q[S.SLOT_UN] >= F.stress_un[b] and t - q[S.SLOT_T0] <= F.impact_age[b]
+    return impact
 
 
 @ti.func
@@ -112,24 +118,14 @@ def close_events(F: ti.template(), b, i, was_open, seen, t):
 
 
 @ti.func
-def is_impact(F: ti.template(), b, i, k, t):
-    """Class of the open contact in slot k of ball i: an impact while its onset normal
-    speed reaches the stress-event threshold and it is younger than the impact age."""
-    q = F.slot[b, i, k]
-    return q[S.SLOT_UN] >= F.stress_un[b] and t - q[S.SLOT_T0] <= F.impact_age[b]
-
-
-@ti.func
-def add_mechanism(m, kind: ti.template(), impact, dn, dtf):
-    """m (NMECH) with this contact's normal and friction dissipation added to its kind
-    and class (state.NMECH layout)."""
-    if impact:
-        m[kind * 4] += dn
-        m[kind * 4 + 1] += dtf
-    else:
-        m[kind * 4 + 2] += dn
-        m[kind * 4 + 3] += dtf
-    return m
+def book_mechanism(F: ti.template(), b, i, kind, impact, dn, dtf):
+    """Add a contact's normal and friction dissipation of this step to its kind and
+    class in ball i's mechanism ledger (state.NMECH layout). Booked here, in the force
+    pass, so a frame's mechanism columns include its own step, which `dissipated`
+    books after the frame: they differ by at most one step's dissipation."""
+    c = kind * 4 + ti.select(impact, 0, 2)
+    F.mech[b, i, c] += dn
+    F.mech[b, i, c + 1] += dtf
 
 
 @ti.func
@@ -164,8 +160,7 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
                 F.bad_ball[b] = i
             else:
                 bit = 1 << k
-                book_contact(F, b, i, k, (was_open & bit) == 0, t, u, udot, slip, xi + ai, fn, dn, dtf)
-                impact = is_impact(F, b, i, k, t)
+                impact = book_contact(F, b, i, k, (was_open & bit) == 0, t, u, udot, slip, xi + ai, fn, dn, dtf)
     return f, tq, diss_n, diss_t, impact, stored, bit
 
 
@@ -180,7 +175,6 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
     f = ti.Vector([0.0, 0.0, 0.0])
     tq = ti.Vector([0.0, 0.0, 0.0])
     drive, diss, stored = 0.0, 0.0, 0.0
-    mech = ti.Vector.zero(ti.f64, S.NMECH)
     was_open = F.slot_mask[b, i]
     seen = 0
     for wall in ti.static(range(S.WALLS)):
@@ -202,14 +196,15 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
             diss += dn + dtf
             stored += el
             seen |= 1 << wall
-            book_contact(F, b, i, wall, (was_open & (1 << wall)) == 0, t, u, udot, slip, p, fn, dn, dtf)
-            mech = add_mechanism(mech, 1 + wall, is_impact(F, b, i, wall, t), dn, dtf)
+            impact = book_contact(F, b, i, wall, (was_open & (1 << wall)) == 0, t, u, udot, slip, p, fn, dn, dtf)
+            book_mechanism(F, b, i, 1 + wall, impact, dn, dtf)
     for q in range(F.nbr_count[b, i]):
         fj, tj, dnj, dtj, impact, ej, bit = ball_pair(F, b, i, F.nbr[b, i, q], was_open, seen, t, w, dt)
         f += fj
         tq += tj
         diss += dnj + dtj
-        mech = add_mechanism(mech, 0, impact, dnj, dtj)
+        if dnj != 0.0 or dtj != 0.0:
+            book_mechanism(F, b, i, 0, impact, dnj, dtj)
         stored += ej
         seen |= bit
     close_events(F, b, i, was_open, seen, t)
@@ -217,5 +212,4 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
     F.tau[b, i] = tq
     F.drive_step[b, i] = drive
     F.diss_step[b, i] = diss
-    F.mech_step[b, i] = mech
     F.elastic[b, i] = stored

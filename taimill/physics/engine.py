@@ -48,7 +48,8 @@ def snapshot(F: ti.template(), b, t, dr):
         el += F.elastic[b, i]
         dw += F.drive_work[b, i]
         ds += F.dissipated[b, i]
-        mech += F.mech[b, i]
+        for c in ti.static(range(S.NMECH)):
+            mech[c] += F.mech[b, i, c]
     row = ti.Vector.zero(ti.f64, S.NLEDGER)  # the schema's ledger columns, by name
     row[S.LEDGER["kinetic"]] = ke
     row[S.LEDGER["potential"]] = pe

@@ -31,7 +31,6 @@ def integrate(F: ti.template(), b, i, dr, dt):
     F.s[b, i] = turn_basis(F.s[b, i] + dt * F.inv_i[b, i] * F.tau[b, i], dr)
     F.drive_work[b, i] += F.drive_step[b, i]
     F.dissipated[b, i] += F.diss_step[b, i]
-    F.mech[b, i] += F.mech_step[b, i]
     if moved_too_far(F, b, i):
         F.rebuild[b] = 1
     check_ball(F, b, i, x)

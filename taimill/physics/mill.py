@@ -61,7 +61,7 @@ def write_mill(F, b: int, spec: MillSpec):
         arr = field.to_numpy()
         arr[b] = 0.0
         field.from_numpy(arr)
-    for field in (F.drive_work, F.dissipated, F.elastic, F.drive_step, F.diss_step, F.mech, F.mech_step):
+    for field in (F.drive_work, F.dissipated, F.elastic, F.drive_step, F.diss_step, F.mech):
         arr = field.to_numpy()
         arr[b] = 0.0
         field.from_numpy(arr)

@@ -103,8 +103,7 @@ class Fields:
         self.diss_step = ti.field(f64, (B, N))  #: J, dissipated in its contacts this step
         self.drive_work = ti.field(f64, (B, N))  #: J, walls' work on this ball
         self.dissipated = ti.field(f64, (B, N))  #: J, in contacts this ball owns
-        self.mech_step = ti.Vector.field(NMECH, f64, (B, N))  #: J, this step's diss_step by mechanism
-        self.mech = ti.Vector.field(NMECH, f64, (B, N))  #: J, `dissipated` by mechanism
+        self.mech = ti.field(f64, (B, N, NMECH))  #: J, dissipation by mechanism, booked in the force pass
         self.elastic = ti.field(f64, (B, N))  #: J, stored now in contacts this ball owns
         self.step = ti.field(i64, B)
         self.status = ti.field(i32, B)

@@ -15,7 +15,7 @@ SERIES = {
     "impact_power": ("impact power", "W", 1),
     "mean_se": ("mean SE", "mJ", 1e3),
     "dissipated_power": ("dissipated power", "W", 1),
-    "collision_rate": ("collision rate", "1/s", 1),
+    "collision_rate": ("stress-event rate", "1/s", 1),
 }
 
 

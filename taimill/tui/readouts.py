@@ -1,6 +1,7 @@
 """Live figures: simulated time and speed, the drive now, and the sliding-window
-summary (impact power normal/tangential, mean SE, collision rate, dissipated power,
-energy-balance error, regime with the critical ratio K_c; docs/outputs.md)."""
+summary (stress events: impact power normal/tangential, mean SE, rate; dissipated
+power and its persistent part, energy-balance error, regime with the critical ratio
+K_c; docs/outputs.md)."""
 
 from __future__ import annotations
 

@@ -182,6 +182,10 @@ async def test_zarr_recording_is_analysed_over_its_own_window(tmp_path):
     q, own = a.quantities(), a.store.summary
     assert t_start >= 20.0 and q["analysis_window"][0] == own["analysis_window"][0] == t_start
     assert q["event_estimator"]["collision_rate"] == pytest.approx(own["collision_rate"], rel=0.2)
+    # The ledger is cumulative from t = 0; both balance it from the recording's first row
+    # (before, analyse reported the 20 s of dissipation before the recording as an error).
+    assert q["energy_balance_error"] < 0.01 and own["energy_balance_error"] < 0.01
+    assert q["drive_work"] == pytest.approx(own["drive_work"], rel=1e-9)  # the work done while it recorded
     shown = (a.store.frames["time"] >= a.t0) & (a.store.frames["time"] < a.t0 + 0.5)  # the report's trajectory panels
     assert shown.sum() >= 20
 

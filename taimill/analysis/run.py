@@ -55,6 +55,7 @@ class RunAnalysis:
             "sampled_estimator": self.sampled if self.sampled is not None else {"error": self.sampled_error},
             "dissipated_power": self.energy["dissipated_power"],
             "energy_balance_error": self.energy["energy_balance_error"],
+            "drive_work": self.energy["drive_work"],
             "g_r": {"r_edges": edges.tolist(), "g": self.density.g.tolist()},
             "randomness_index": self.density.randomness_index,
             **self.regime,

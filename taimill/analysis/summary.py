@@ -24,7 +24,11 @@ from taimill.schema import ENERGY_COLUMNS, MECHANISM_CLASSES, MECHANISM_COLUMNS,
 
 class EnergyLedger:
     """Energy balance from the cumulative ledger rows: E_kin + E_pot + E_el + dissipated
-    must equal E_0 + drive work; errors relative to the largest |drive work|."""
+    must equal E_0 + drive work; errors relative to the largest |drive work|.
+
+    Everything is counted from the first row seen: a stream that starts mid-run (a
+    recording begun in the TUI at t = 20 s) balances from its own start, where the
+    ledger's dissipated energy and drive work are already large."""
 
     def __init__(self, t0: float):
         self.t0 = t0
@@ -40,12 +44,15 @@ class EnergyLedger:
             self.window = rows[np.argmax(rows[:, 0] >= self.t0)]
         self.last = rows[-1]
         self.worst = max(self.worst, float(np.abs(self.imbalance(rows)).max()))
-        self.scale = max(self.scale, float(np.abs(rows[:, 4]).max()))
+        self.scale = max(self.scale, float(np.abs(rows[:, 4] - self.first[4]).max()))
 
     def imbalance(self, rows):
-        """(E_kin + E_pot + E_el + dissipated) - (E_0 + drive work), J, per row."""
+        """(E_kin + E_pot + E_el + dissipated) - (E_0 + drive work), J, per row, with
+        E_0, dissipated and drive work counted from the first row (for a stream that
+        starts at t = 0 the ledger's first dissipated energy and work are exactly 0)."""
         e0 = self.first
-        return (rows[..., 1] + rows[..., 2] + rows[..., 3] + rows[..., 5]) - (e0[1] + e0[2] + e0[3] + rows[..., 4])
+        return ((rows[..., 1] + rows[..., 2] + rows[..., 3] + rows[..., 5])
+                - (e0[1] + e0[2] + e0[3] + e0[5] + (rows[..., 4] - e0[4])))
 
     def result(self, tau: float) -> dict:
         if self.last is None:
@@ -54,7 +61,7 @@ class EnergyLedger:
         diss = (self.last[5] - self.window[5]) / tau if (tau > 0 and self.window is not None) else math.nan
         rel = (lambda x: x / self.scale if self.scale > 0 else math.nan)
         out = {"dissipated_power": float(diss), "energy_balance_error": float(rel(abs(self.imbalance(self.last)))),
-               "energy_balance_worst": float(rel(self.worst)), "drive_work": float(self.last[4])}
+               "energy_balance_worst": float(rel(self.worst)), "drive_work": float(self.last[4] - self.first[4])}
         if len(self.last) == len(ENERGY_COLUMNS) and self.window is not None and tau > 0:
             first = len(ENERGY_COLUMNS) - len(MECHANISM_COLUMNS)
             out.update(mechanism_powers((self.last[first:] - self.window[first:]) / tau))

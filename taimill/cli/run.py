@@ -68,10 +68,23 @@ def cmd_run(a) -> int:
     return 0
 
 
-def _run_with_bar(run, preset, sink):
+def _run_with_bar(run, preset, sink, console=None):
+    """The run under a progress bar on stderr. Until the first launch returns (Taichi
+    start-up and kernel compilation, seconds) the bar says so and pulses; then it counts
+    simulated seconds, its clock restarted so the remaining time is the simulation's."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
-    with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.completed:.2f}/{task.total:.1f} s"),
-                  TimeRemainingColumn(), transient=True, console=stderr_console()) as bar:
-        task = bar.add_task("run", total=preset.duration)
-        return run(preset, sink, progress=lambda t: bar.update(task, completed=t))
+    class Remaining(TimeRemainingColumn):
+        def render(self, task):
+            return TextColumn("").render(task) if task.total is None else super().render(task)
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[done]}"), Remaining(),
+                  transient=True, console=console or stderr_console()) as bar:
+        task = bar.add_task("compiling kernels…", total=None, done="")
+
+        def progress(t):
+            if bar.tasks[0].total is None:
+                bar.reset(task, total=preset.duration, description="simulating")
+            bar.update(task, completed=t, done=f"{t:.2f}/{preset.duration:.1f} s")
+
+        return run(preset, sink, progress=progress)

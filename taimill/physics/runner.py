@@ -10,6 +10,7 @@ A sink here is any object with the `events`, `frames` and `energy` calls of
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import sys
 
@@ -58,9 +59,13 @@ def init_taichi(threads: int | None = None):
     kw = {}
     if threads:
         kw["cpu_max_num_threads"] = threads
-    with contextlib.redirect_stdout(sys.stderr):  # ti.init prints "Starting on arch"
+    level = os.environ.get("TAIMILL_TI_LOG", "warn")
+    # ti.init prints "[Taichi] Starting on arch=…" whatever the log level: kept off stdout
+    # (JSON) and off a progress bar's line, shown on stderr only when asked for (info, debug)
+    quiet = level.lower() in ("warn", "warning", "error", "critical")
+    with contextlib.redirect_stdout(io.StringIO() if quiet else sys.stderr):
         ti.init(arch=ti.cpu, default_fp=ti.f64, default_ip=ti.i32, offline_cache=True, fast_math=False,
-                log_level=os.environ.get("TAIMILL_TI_LOG", "warn"), **kw)
+                log_level=level, **kw)
     _initialised = True
 
 

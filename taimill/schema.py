@@ -110,3 +110,68 @@ SUMMARY_ROWS = (
     ("critical_ratio", "critical ratio K_c (one ball)", "", 1),
     ("single_ball_se", "one-ball hit energy (Burgio-type)", "mJ", 1e3),
 )
+
+# ---------------------------------------------------------------- units of the JSON outputs
+# The unit of every number in a summary object (`taimill run --json`, the rows of
+# `taimill sweep --json`, `taimill analyse --json`, a store's `summary` attribute):
+# key -> unit, "1" for counts, ratios and fractions (0 … 1, not %). A key has the same
+# unit wherever it appears, also inside nested objects (`all_contacts`, the estimators of
+# `analyse`, `main_sink`, `wear_hot_spot`, …); an object whose entries all share one unit
+# is listed under its own name (`dissipation_by_mechanism`: W). JSON values are SI except
+# rpm (speeds as the presets give them) and deg (angles named `…_deg`).
+_EVENT_UNITS = {"impact_power": "W", "impact_power_normal": "W", "impact_power_tangential": "W",
+                "mean_se": "J", "mean_se_normal": "J", "mean_se_tangential": "J", "normal_fraction": "1",
+                "events": "1", "points": "1"}
+SUMMARY_UNITS: dict[str, str] = {
+    **_EVENT_UNITS,
+    **{f"{k}_{kind}": u for k, u in _EVENT_UNITS.items() for kind in ("ball_ball", "ball_wall")},
+    "min_un": "m/s", "events_below_threshold": "1", "events_total": "1", "samples": "1",
+    "collision_rate": "1/s", "collision_rate_per_ball": "1/s",
+    "impact_power_density": "W/m³", "mean_se_density": "J/m³",
+    "dissipated_power": "W", "drive_work": "J", "energy_balance_error": "1", "energy_balance_worst": "1",
+    "dissipation_by_mechanism": "W",
+    **{f"dissipated_power_{k}": "W" for k in (*MECHANISM_CLASSES, *MECHANISM_PARTS, *MECHANISM_KINDS)},
+    "power": "W", "share": "1",  # main_sink
+    "randomness_index": "1", "regime_confidence": "1", "side_wall_fraction": "1",
+    "wall_fraction": "1", "flight_fraction": "1", "flight_chord": "1",  # regime_criteria
+    "regime_thresholds": "1",
+    "power_per_area": "W/m²", "concentration": "1", "arc_length": "m", "angle_deg": "deg",
+    "x": "m", "y": "m", "z": "m",  # wear_hot_spot
+    "critical_ratio": "1", "single_ball_se": "J",
+    "analysis_window": "s", "sim_seconds": "s", "wall_seconds": "s", "realtime_factor": "1", "dt": "s",
+    "steps": "1", "ratio": "1", "plate_rpm": "rpm",
+    # taimill analyse
+    "r_edges": "m", "g": "1", "wall_energy": "J",
+    "se": "J", "se_n": "J", "se_t": "J", "un": "m/s", "ut": "m/s", "detach_angle_deg": "deg",
+    "flight_time": "s",  # single_ball_hit
+    # a TUI recording: its span and the live changes made while it ran
+    "recorded": "s", "time": "s", "jar_rpm": "rpm", "ramp_time": "s", "mu_s": "1", "mu_d": "1",
+    # taimill sweep rows: the point and its swept values
+    "point": "1", "balls": "1", "seed": "1", "replica": "1", "batch": "1", "duration": "s",
+    "plate_radius": "m", "jar_radius": "m", "ball_radius": "m", "regime_fractions": "1", "replicas": "1",
+}
+
+
+def units_of(obj) -> dict[str, str]:
+    """SUMMARY_UNITS restricted to the keys found in `obj` (a summary: nested objects and
+    lists of objects searched too; an object listed by name is not searched further)."""
+    found: dict[str, str] = {}
+
+    def walk(v):
+        if isinstance(v, dict):
+            for k, x in v.items():
+                if k in SUMMARY_UNITS:
+                    found[k] = SUMMARY_UNITS[k]
+                if k not in SUMMARY_UNITS or not isinstance(x, dict):
+                    walk(x)
+        elif isinstance(v, (list, tuple)):
+            for x in v:
+                walk(x)
+
+    walk(obj)
+    return dict(sorted(found.items()))
+
+
+def with_units(summary: dict) -> dict:
+    """The summary with its `units` table (units_of) as its last key."""
+    return {k: v for k, v in summary.items() if k != "units"} | {"units": units_of(summary)}

@@ -31,3 +31,22 @@ def two_ball_impact(bb: NormalLaw, friction, v_rel, offset, *, dt):
     events). The geometry is `taimill.calibration.runs.two_sphere_spec`."""
     ball, jar, _, bw, _ = steel()
     return run_spec(two_sphere_spec(ball, jar, bb, bw, friction, v_rel, offset, dt=dt))
+
+
+def numbers_without_unit(summary: dict) -> list[str]:
+    """Paths of the numbers in a JSON summary that its `units` table does not cover: a
+    number is covered by its own key or by the name of an object enclosing it."""
+    units, missing = summary["units"], []
+
+    def walk(v, path, key, covered):
+        if isinstance(v, dict):
+            for k, x in v.items():
+                walk(x, f"{path}.{k}", k, covered or (k in units and isinstance(x, dict)))
+        elif isinstance(v, (list, tuple)):
+            for i, x in enumerate(v):
+                walk(x, f"{path}[{i}]", key, covered)
+        elif isinstance(v, (int, float)) and not isinstance(v, bool) and not covered and key not in units:
+            missing.append(path.lstrip("."))
+
+    walk({k: v for k, v in summary.items() if k != "units"}, "", None, False)
+    return missing

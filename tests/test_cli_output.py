@@ -1,16 +1,52 @@
-"""What a newcomer sees of the CLI: the progress bar of `taimill run` says when it
-compiles before it counts seconds."""
+"""What a newcomer sees of the CLI: JSON outputs carry the units of their numbers
+(docs/outputs.md), and the progress bar of `taimill run` says when it compiles before it
+counts seconds."""
 
 import io
+import json
+import subprocess
+import sys
 from pathlib import Path
 
 from rich.console import Console
 
+from helpers import numbers_without_unit
 from taimill.cli.run import _run_with_bar
 from taimill.model.params import load_preset
+from taimill.schema import SUMMARY_UNITS, units_of
+from taimill.store.run import open_run
 
 ROOT = Path(__file__).resolve().parent.parent
 PRESET = ROOT / "presets" / "p4-cy-steel.toml"
+
+
+def taimill(*args):
+    return subprocess.run([sys.executable, "-m", "taimill.cli", *map(str, args)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=600)
+
+
+def test_units_of_finds_keys_in_nested_objects_and_stops_at_an_object_with_one_unit():
+    s = {"mean_se": 1e-3, "all_contacts": {"collision_rate": 3.0}, "regime": "cascading",
+         "dissipation_by_mechanism": {"side": {"impact": {"friction": 0.1}}}, "live_changes": [{"time": 1.0}]}
+    assert units_of(s) == {"collision_rate": "1/s", "dissipation_by_mechanism": "W", "mean_se": "J", "time": "s"}
+    assert "friction" not in SUMMARY_UNITS  # W in dissipation_by_mechanism, J in wall_energy: listed by object
+
+
+def test_run_and_analyse_json_and_the_stored_summary_carry_units(tmp_path):
+    out = tmp_path / "run.zarr"
+    res = taimill("run", PRESET, "--duration", 0.3, "--json", "--out", out)
+    assert res.returncode == 0, res.stderr
+    assert "[Taichi]" not in res.stderr  # Taichi's start line is not printed
+    summary = json.loads(res.stdout)
+    assert summary["units"]["mean_se"] == "J" and summary["units"]["plate_rpm"] == "rpm"
+    assert summary["units"]["energy_balance_error"] == "1"  # a fraction, not %
+    assert numbers_without_unit(summary) == []
+    assert open_run(out).summary["units"] == summary["units"]
+    res = taimill("analyse", out, "--json")
+    assert res.returncode == 0, res.stderr
+    q = json.loads(res.stdout)
+    assert q["units"]["r_edges"] == "m" and q["units"]["wall_energy"] == "J"
+    assert numbers_without_unit(q) == []
 
 
 def test_progress_bar_says_it_compiles_before_it_counts_simulated_seconds():

@@ -17,6 +17,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from helpers import numbers_without_unit
 from taimill import cli
 from taimill.errors import ConfigError
 from taimill.store.run import ZarrSink, open_run
@@ -282,6 +283,8 @@ def test_sweep_json_and_table_give_the_regimes_of_the_replicas(local_sweep):
         assert len(same) == 2 and set(REGIMES) <= set(r["regime_fractions"])
         assert r["regime_fractions"] == {lab: same.count(lab) / 2 for lab in r["regime_fractions"]}
         assert r["bistable"] == (len(set(same) - {"unknown"}) > 1)
+        assert numbers_without_unit(r) == [] and r["units"]["mean_se"] == "J"  # each row with its units
+        assert r["units"]["plate_radius"] == "m" and r["units"]["regime_fractions"] == "1"
     res = taimill(*SWEEP, "--out", path)  # resumes a finished sweep: nothing runs
     assert res.returncode == 0, res.stderr
     header, *lines = res.stdout.split("regimes of the replicas")[1].splitlines()[1:]

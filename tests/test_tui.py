@@ -8,6 +8,7 @@ import sys
 import numpy as np
 import pytest
 import rerun as rr
+from helpers import numbers_without_unit
 
 from taimill.analysis.run import analyse
 from taimill.recording import scene
@@ -152,6 +153,7 @@ async def test_record_rrd_and_zarr_mid_run(mill, tmp_path):
     assert t_start <= frames[0] < t_start + 0.011 and np.all(np.diff(frames) > 0)  # from the key on
     assert run.summary["recorded"][0] == t_start and run.summary["events"] > 0
     assert [c["mu_s"] for c in run.summary["live_changes"]] == [0.9]
+    assert numbers_without_unit(run.summary) == [] and run.summary["units"]["recorded"] == "s"
     ev = run.events  # events are streamed when they end: a contact open at the key press counts
     assert len(ev["t_start"]) > 0 and (ev["t_start"] + ev["duration"]).min() >= t_start
     balls = rr.chunk.RrdReader(rrd).stream().collect().reader(index=scene.TIME, contents=scene.BALLS).to_arrow_table()

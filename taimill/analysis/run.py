@@ -17,6 +17,7 @@ from taimill.errors import ConfigError
 from taimill.model.mechanisms import STRESS_MIN_UN
 from taimill.store.run import RunStore, open_run
 from taimill.analysis.summary import EnergyLedger
+from taimill.schema import with_units
 
 
 @dataclass
@@ -40,11 +41,12 @@ class RunAnalysis:
         return max(self.t1 - self.t0, 0.0)
 
     def quantities(self) -> dict:
-        """Everything as one JSON-able dict; each estimator labelled."""
+        """Everything as one JSON-able dict; each estimator labelled; the units of its
+        numbers in `units` (taimill.schema.SUMMARY_UNITS)."""
         g = self.geom
         edges = self.density.edges
         hit = single_ball_hit(g.plate_radius, g.jar_radius, g.ball_radius, g.plate.end, g.ratio, g.ball_mass)
-        return {
+        return with_units({
             "status": self.store.status if self.store.summary is not None else
             f"incomplete (status '{self.store.status}', no final summary: killed or still running)",
             "analysis_window": [self.t0, self.t1],
@@ -63,7 +65,7 @@ class RunAnalysis:
             "wall_energy": {"impact": self.wall.total("impact"), "friction": self.wall.total("friction")},
             "critical_ratio": critical_ratio(g.plate_radius, g.jar_radius, g.ball_radius),
             "single_ball_hit": hit,
-        }
+        })
 
 
 def analyse(run, *, analysis_start: float | None = None, min_un: float = STRESS_MIN_UN,

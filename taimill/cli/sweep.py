@@ -54,7 +54,7 @@ def register(subparsers) -> None:
     x.add_argument("--scheduler", metavar="ADDRESS", help="dask.distributed scheduler, e.g. tcp://host:8786")
     s.add_argument("--out", help="sweep store to write (SWEEP.zarr); the same command resumes it")
     s.add_argument("--overwrite", action="store_true", help="replace an existing --out store")
-    s.add_argument("--json", action="store_true", help="print a JSON list of the points' summaries with the swept values and their K's "
+    s.add_argument("--json", action="store_true", help="print a JSON list of the points' summaries (each with its units) with the swept values and their K's "
                    "regime_fractions and bistable (replicas in different regimes)")
     s.set_defaults(fn=cmd_sweep)
 
@@ -89,6 +89,7 @@ def request(a):
 
 def cmd_sweep(a) -> int:
     from taimill.cli.common import plain as _plain, stderr_console as _stderr_console
+    from taimill.schema import with_units
     from taimill.runs.sweep import plan, run_sweep
     from taimill.store.sweep import SweepStore
 
@@ -107,7 +108,7 @@ def cmd_sweep(a) -> int:
         rows, peaks = run_sweep(req, store, **run_kw)
     rows, groups = with_regimes(rows)
     if a.json:
-        print(json.dumps([_plain(r) for r in rows]))
+        print(json.dumps([_plain(with_units(r)) for r in rows]))  # each row a summary object with its units
         for p in peaks:
             print(peak_line(p), file=sys.stderr)
         return 0

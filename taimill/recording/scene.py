@@ -167,8 +167,10 @@ def info_text(config: dict, speed_ref: float, se_ref: float, summary: dict | Non
         f"- contact map by onset u̇_n ({COLORMAPS['contact']}, {UN_DECADES:g} decades up to {speed_ref:.2f} m/s)",
     ]
     if summary:
-        lines += ["", f"## Summary ({status})", "", "| key | value |", "|---|---|"]
-        lines += [f"| {k} | {v:.6g} |" if isinstance(v, float) else f"| {k} | {v} |" for k, v in summary.items()]
+        units = summary.get("units", {})
+        lines += ["", f"## Summary ({status})", "", "| key | value | unit |", "|---|---|---|"]
+        lines += [f"| {k} | {v:.6g} | {units.get(k, '')} |" if isinstance(v, float) else f"| {k} | {v} | {units.get(k, '')} |"
+                  for k, v in summary.items() if k != "units"]
     return "\n".join(lines)
 
 

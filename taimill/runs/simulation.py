@@ -11,6 +11,7 @@ from taimill.analysis.summary import SummarySink
 from taimill.errors import SimulationUnstable
 from taimill.model.spec import from_preset
 from taimill.physics.runner import Runner
+from taimill.schema import with_units
 from taimill.store.sinks import FanOut, NullSink
 
 
@@ -29,7 +30,7 @@ def point_result(preset, spec, summary, runner, b, wall, status) -> dict:
     result = summary.result(runner.time(b), wall)
     result.update(dt=spec.dt, steps=int(runner.engine.F.step[b]), status=status,
                   ratio=preset.drive.ratio, plate_rpm=preset.drive.plate_rpm)
-    return result
+    return with_units(result)
 
 
 def run(preset, sink=None, *, duration: float | None = None, progress=None) -> dict:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -25,6 +26,18 @@ from taimill.recording import scene
 from taimill.cli.record import viewer_binary
 
 DISPLAY = ":97"
+# program -> what provides it (Debian)
+NEEDED = {"Xvfb": "apt-get install xvfb", "xdotool": "apt-get install xdotool"}
+
+
+def missing_tool() -> str | None:
+    """One line naming the first missing program and how to install it, or None."""
+    for program, install in NEEDED.items():
+        if shutil.which(program) is None:
+            return f"rerun_screenshot: {program} not found; install it with `{install}` (and mesa-vulkan-drivers for the viewer)"
+    if viewer_binary() is None:
+        return "rerun_screenshot: the rerun viewer not found; install it with `pip install rerun-sdk`"
+    return None
 
 
 def main():
@@ -35,8 +48,12 @@ def main():
     ap.add_argument("--size", default="1600x900", help="viewer window in logical points")
     a = ap.parse_args()
     w, h = (int(v) for v in a.size.split("x"))
+    problem = missing_tool() or (None if a.rrd.is_file() else f"rerun_screenshot: {a.rrd} is not a file")
+    if problem:
+        print(problem, file=sys.stderr)
+        return 2
     with tempfile.TemporaryDirectory() as tmp:
-        bp = scene.blueprint(a.lab_frame)
+        bp = scene.blueprint(a.lab_frame, scene.recorded_extent(a.rrd))
         bp.time_panel = rrb.TimePanel(timeline=scene.TIME, state="collapsed", play_state="following")
         follow = Path(tmp) / "follow.rbl"
         bp.save("taimill", follow)
@@ -52,6 +69,7 @@ def main():
         finally:
             xvfb.terminate()
     print(a.out)
+    return 0
 
 
 if __name__ == "__main__":

@@ -133,7 +133,7 @@ def test_histogram_of_the_whole_short_run(run):
     shares = np.array(h["values"][0][0]["buffer"])
     np.testing.assert_allclose(shares, onset_histogram(store.events["un"]), rtol=1e-12)
     assert shares.sum() == pytest.approx(1.0)
-    np.testing.assert_allclose(h["abscissa"][0][0]["buffer"], 0.5 * (hist_edges()[1:] + hist_edges()[:-1]))
+    np.testing.assert_allclose(h["abscissa"][0][0]["buffer"], 0.5 * (hist_edges()[1:] + hist_edges()[:-1]) + 3.0)  # log10 mm/s
 
 
 def test_blueprint_saved_with_the_file(run):
@@ -146,6 +146,14 @@ def test_blueprint_saved_with_the_file(run):
     assert kinds.count("3D") == 2 and kinds.count("TimeSeries") == 6 and kinds.count("BarChart") == 2
     impacts = [v[0][0] for k, v in values.items() if "overrides/jar/impacts" in k and k.endswith("ranges")]
     assert [r["range"]["start"] for r in impacts] == [-round(scene.IMPACT_LIFE * 1e9)] * 2
+    # the jar view's camera looks at the jar's centre from far enough for the whole jar
+    # (its bounding sphere) to fit a 45° field of view: the viewer's own choice cropped it
+    radius, height = scene.extent_of(run[0].config)
+    eye = {k.rpartition(":")[2]: np.array(v[0][0]) for k, v in values.items() if "EyeControls3D:" in k}
+    np.testing.assert_allclose(eye["look_target"], [0.0, 0.0, height / 2], atol=1e-6)
+    rho = np.hypot(radius, height / 2)
+    assert np.linalg.norm(eye["position"] - eye["look_target"]) >= rho / np.sin(np.radians(22.5))
+    assert scene.recorded_extent(live) == pytest.approx((radius, height), rel=1e-6)  # float32 in the file
 
 
 def test_record_of_the_store_equals_the_live_recording(run):

@@ -14,7 +14,7 @@ Entity tree (SI units: m, s, J, W):
     /jar/contact_map         ball-wall events, coloured by u̇_n, shown accumulated
     /plate                   lab frame only: the plate rim and the jar's path
     /stats/...               scalar series (stats.py)
-    /histograms/onset_{normal,tangential}   BarCharts over log10 onset speed
+    /histograms/onset_{normal,tangential}   BarCharts over log10 onset speed in mm/s (as the reports)
     /run/info                the resolved preset and, at the end, the summary
 
 Colour scales are fixed per run so colours mean the same at every time: speeds relative
@@ -174,10 +174,15 @@ def info_text(config: dict, speed_ref: float, se_ref: float, summary: dict | Non
     return "\n".join(lines)
 
 
+HIST_ABSCISSA_SHIFT = 3.0  # log10(m/s) + 3 = log10(mm/s)
+
+
 def histogram(kind: str, shares: np.ndarray) -> rr.BarChart:
-    """Bars over the log10 onset-speed bins (the abscissa), coloured per kind.
+    """Bars over the log10 onset-speed bins, coloured per kind. The abscissa is log10 of
+    the speed in mm/s (−1 … 4), the unit of the reports' onset-speed figures and of the
+    stress-event threshold (10 mm/s sits at 1).
     (Whole rows: BarChart.from_fields without values fails in rerun-sdk 0.41.)"""
-    edges = hist_edges()
+    edges = hist_edges() + HIST_ABSCISSA_SHIFT
     return rr.BarChart(shares, abscissa=0.5 * (edges[1:] + edges[:-1]), widths=np.diff(edges),
                        color=shade(lut(COLORMAPS[kind]), np.array(0.6)))
 
@@ -188,14 +193,50 @@ def recent(seconds: float) -> rrb.VisibleTimeRanges:
                                  end=rrb.TimeRangeBoundary.cursor_relative())
 
 
-def blueprint(lab_frame: bool) -> rrb.Blueprint:
+# The jar view's camera: seen from EYE_AZIMUTH (deg, from +x) and EYE_ELEVATION above
+# the floor plane, at EYE_DISTANCE times the radius of the jar's bounding sphere from its
+# centre: the whole jar stays in view in the recording's narrow (portrait) panel, whose
+# horizontal field of view is ≈ 45° (the viewer's own choice zooms into the balls).
+EYE_AZIMUTH, EYE_ELEVATION, EYE_DISTANCE = -60.0, 35.0, 3.2
+
+
+def jar_eye(radius: float, height: float) -> rrb.EyeControls3D:
+    """Orbit camera on the jar's centre (jar frame, m) showing the whole jar."""
+    centre = np.array([0.0, 0.0, 0.5 * height])
+    d = EYE_DISTANCE * math.hypot(radius, 0.5 * height)
+    az, el = math.radians(EYE_AZIMUTH), math.radians(EYE_ELEVATION)
+    eye = centre + d * np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    return rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, position=eye, look_target=centre, eye_up=[0.0, 0.0, 1.0])
+
+
+def extent_of(config: dict) -> tuple[float, float]:
+    """(bounding radius, height) of the jar of a resolved preset (m)."""
+    return float(np.hypot(*jar_outline(config).T).max()), float(config["jar"]["height"])
+
+
+def recorded_extent(rrd) -> tuple[float, float] | None:
+    """(bounding radius, height) of the jar drawn in a recording (its /jar/wall strips,
+    m), or None if it has none."""
+    for chunk in rr.chunk.RrdReader(str(rrd)).stream().to_chunks():
+        if str(chunk.entity_path) == WALL:
+            batch = chunk.to_record_batch()
+            strips = batch.column(batch.schema.get_field_index("LineStrips3D:strips")).to_pylist()
+            xyz = np.array([p for row in strips if row for strip in row for p in strip], dtype=float)
+            if len(xyz):
+                return float(np.hypot(xyz[:, 0], xyz[:, 1]).max()), float(xyz[:, 2].max())
+    return None
+
+
+def blueprint(lab_frame: bool, extent: tuple[float, float] | None = None) -> rrb.Blueprint:
     """3-D views (jar frame; lab frame if recorded), the time series in a grid, the
-    histograms and the accumulated contact map."""
+    histograms and the accumulated contact map. extent: the jar's (bounding radius,
+    height) in m (`extent_of`), for a camera showing the whole jar."""
     jar_view = rrb.Spatial3DView(
         origin=JAR, name="jar frame: balls by speed, impacts by SE",
         contents=[f"+ {WALL}", f"+ {FLOOR}", f"+ {BALLS}", "+ /jar/impacts/**"],
         overrides={IMPACTS["normal"]: recent(IMPACT_LIFE),  # tangential: same points, off until toggled
                    IMPACTS["tangential"]: [recent(IMPACT_LIFE), rrb.EntityBehavior(visible=False)]},
+        eye_controls=jar_eye(*extent) if extent else None,
     )
     views = [jar_view]
     if lab_frame:
@@ -212,7 +253,7 @@ def blueprint(lab_frame: bool) -> rrb.Blueprint:
         time_ranges=rrb.VisibleTimeRanges(timeline=TIME, start=rrb.TimeRangeBoundary.infinite(),
                                           end=rrb.TimeRangeBoundary.cursor_relative()),
     )
-    bars = [rrb.BarChartView(origin=path, name=f"onset u̇_{kind[0]}: share per log10(m/s) bin")
+    bars = [rrb.BarChartView(origin=path, name=f"onset u̇_{kind[0]}: share per bin of log10(u̇_{kind[0]} in mm/s)")
             for kind, path in HISTOGRAMS.items()]
     return rrb.Blueprint(
         rrb.Horizontal(

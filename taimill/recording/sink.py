@@ -73,7 +73,7 @@ class RerunSink:
         self.luts = {k: scene.lut(name) for k, name in scene.COLORMAPS.items()}
         self.plate, self.jar = Drive.from_config(config).start_up()
         self.rec = rr.RecordingStream("taimill")
-        self.rec.save(self.path, default_blueprint=scene.blueprint(self.lab_frame))
+        self.rec.save(self.path, default_blueprint=scene.blueprint(self.lab_frame, scene.extent_of(config)))
         self.rec.send_recording_name(f"{config['jar']['name']} {config['pair']} {self.path.stem}")
         scene.log_scenery(self.rec, config, outline, radii, self.lab_frame)
         self._log_info()

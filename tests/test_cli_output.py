@@ -1,9 +1,10 @@
 """What a newcomer sees of the CLI: JSON outputs carry the units of their numbers
-(docs/outputs.md), and the progress bar of `taimill run` says when it compiles before it
-counts seconds."""
+(docs/outputs.md), `taimill presets` shows each preset's whole first sentence, and the
+progress bar of `taimill run` says when it compiles before it counts seconds."""
 
 import io
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -11,6 +12,8 @@ from pathlib import Path
 from rich.console import Console
 
 from helpers import numbers_without_unit
+from taimill.cli import main
+from taimill.cli.catalog import first_sentence
 from taimill.cli.run import _run_with_bar
 from taimill.model.params import load_preset
 from taimill.schema import SUMMARY_UNITS, units_of
@@ -63,3 +66,31 @@ def test_progress_bar_says_it_compiles_before_it_counts_simulated_seconds():
     assert _run_with_bar(run, load_preset(PRESET, {"duration": 0.5}), None, console=console) == {"done": True}
     assert "compiling kernels" in seen[0] and "0.00/" not in seen[0]
     assert "simulating" in text.getvalue() and "0.50/0.5 s" in text.getvalue()
+
+
+def presets_listing(capsys) -> dict[str, str]:
+    capsys.readouterr()
+    assert main(["presets"]) == 0
+    out = capsys.readouterr().out
+    entries = re.split(r"\n(?=presets/)", out.strip())
+    return {e.split()[0]: " ".join(e.split()[1:]) for e in entries}
+
+
+def test_presets_shows_whole_first_sentences(capsys):
+    listing = presets_listing(capsys)
+    files = sorted((ROOT / "presets").glob("*.toml"))
+    assert sorted(listing) == [f"presets/{p.name}" for p in files]
+    for p in files:
+        text = listing[f"presets/{p.name}"]
+        assert text == first_sentence(p) and text.endswith(".")
+        comment = " ".join(line.lstrip("# ").strip() for line in p.read_text().splitlines() if line.startswith("#"))
+        assert comment.startswith(text)  # nothing cut from the start of the comment
+
+
+def test_efv_presets_read_differently_and_name_their_pair_and_speed(capsys):
+    efv = {name: text for name, text in presets_listing(capsys).items() if "/efv-" in name}
+    assert len(efv) == 4 and len(set(efv.values())) == 4
+    for name, text in efv.items():
+        pair = "zirconia-efavirenz" if "efavirenz" in name else "zirconia-zirconia"
+        rpm = re.search(r"(\d+)rpm", name).group(1)
+        assert pair in text and f"{rpm} rpm" in text

@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import json
+import re
+import shutil
+import textwrap
+from pathlib import Path
 
 
 def register(sub) -> None:
@@ -16,12 +20,28 @@ def register(sub) -> None:
     js.add_argument("--out", help="image to write, .png or .svg (default jar-NAME.png)")
 
 
+def first_sentence(path) -> str:
+    """The first sentence of a preset's leading comment (its description), whole."""
+    lines = []
+    for line in Path(path).read_text().splitlines():
+        if not line.startswith("#"):
+            break
+        lines.append(line.lstrip("#").strip())
+    text = " ".join(x for x in lines if x)
+    end = re.search(r"\.(\s|$)", text)  # a full stop before a space: "§3.2" and "-2.6" go on
+    return text[: end.start() + 1] if end else text
+
+
 def cmd_presets(a) -> int:
     from taimill.model.params import ROOT
 
-    for p in sorted((ROOT / "presets").glob("*.toml")):
-        first = p.read_text().splitlines()[0].lstrip("# ")
-        print(f"{p.relative_to(ROOT)}  {first}")
+    paths = sorted((ROOT / "presets").glob("*.toml"))
+    names = [str(p.relative_to(ROOT)) for p in paths]
+    w = max(map(len, names), default=0) + 2
+    width = max(shutil.get_terminal_size().columns, w + 40)
+    for name, p in zip(names, paths):  # wrapped, never cut: the name, then the first sentence
+        print(textwrap.fill(first_sentence(p), width, initial_indent=name.ljust(w), subsequent_indent=" " * w,
+                            break_long_words=False, break_on_hyphens=False))
     return 0
 
 

@@ -13,7 +13,7 @@ import pytest
 import zarr
 from PIL import Image
 
-from taimill.figures.report import FIGURES
+from taimill.figures.report import FIGURES, SUBSTEPS, draw_energy, draw_trajectories_top, hermite_path
 from taimill.analysis.run import analyse
 from taimill.model.params import ROOT, load_preset
 from taimill.runs.simulation import run
@@ -155,3 +155,50 @@ def test_killed_run_is_analysed_up_to_its_commit_markers(tmp_path):
     assert q["event_estimator"]["events"] > 0
     r = taimill("report", str(out), "--out", str(tmp_path / "rep"))
     assert r.returncode == 0, r.stderr
+
+
+def test_hermite_path_joins_the_stored_frames_and_is_exact_for_a_cubic():
+    # a cubic in time (free flight under a constant force has degree 2) with uneven frames
+    t = np.array([0.0, 0.01, 0.021, 0.03])
+    c = np.array([[0.01, -0.02], [0.5, 1.0], [-4.9, 2.0], [30.0, -7.0]])  # coefficients of 1, t, t², t³
+
+    def pos(t):
+        return np.stack([t**0, t, t**2, t**3], axis=-1) @ c
+
+    def vel(t):
+        return np.stack([0 * t, t**0, 2 * t, 3 * t**2], axis=-1) @ c
+
+    curve = hermite_path(t, pos(t), vel(t))
+    assert curve.shape == (SUBSTEPS * 3 + 1, 2)
+    np.testing.assert_allclose(curve[::SUBSTEPS], pos(t), atol=1e-15)  # through every stored frame
+    fine = np.concatenate([t[i] + np.diff(t)[i] * np.arange(SUBSTEPS) / SUBSTEPS for i in range(3)] + [t[-1:]])
+    np.testing.assert_allclose(curve, pos(fine), atol=1e-12)
+
+
+def test_trajectory_panel_draws_smooth_curves_and_marks_the_stored_frames(stored):
+    import matplotlib.pyplot as plt
+
+    a = analyse(stored[0])
+    fig, ax = plt.subplots()
+    draw_trajectories_top(ax, a)
+    frames = int(((a.store.frames["time"] >= a.t0) & (a.store.frames["time"] < a.t0 + 0.5)).sum())
+    curves = [ln for ln in ax.lines if ln.get_label().startswith("ball")]
+    dots = [ln for ln in ax.lines if ln.get_marker() == "."]
+    assert len(curves) == len(dots) == 3
+    assert all(len(ln.get_xdata()) == SUBSTEPS * (frames - 1) + 1 for ln in curves)
+    assert all(len(ln.get_xdata()) == frames for ln in dots)
+    plt.close(fig)
+
+
+def test_energy_plot_legend_names_the_balance_error_and_the_analysis_start(stored):
+    import matplotlib.pyplot as plt
+
+    a = analyse(stored[0])
+    fig, ax = plt.subplots()
+    draw_energy(ax, a)
+    labels = [t.get_text() for axis in fig.axes if axis.get_legend() for t in axis.get_legend().get_texts()]
+    assert any(lab.startswith("balance error") for lab in labels)
+    assert f"analysis start ({a.t0:g} s)" in labels
+    assert "drive work (walls on balls)" in labels and len(labels) == 5
+    plt.close(fig)
+

@@ -29,26 +29,57 @@ def _outline(ax, a: RunAnalysis):
     ax.set_aspect("equal")
 
 
-def draw_trajectories_top(ax, a: RunAnalysis, balls: int = 3, seconds: float = 0.5):
+# Trajectory panels: stored frames are 10 ms apart (100/s), in which a cataracting ball
+# flies 2-5 cm, so straight lines between them draw a jagged polygon. Between two
+# frames the curve is the cubic Hermite interpolant of the stored positions and
+# velocities (velocities relative to the jar frame are the time derivatives of the
+# jar-frame positions): exact to O(h⁴) in free flight and while rolling along the
+# wall. A collision between two frames bends the real path sharply; the curve keeps
+# its end points and end tangents there but rounds the corner, so the stored frames
+# are marked with dots: the data, the curve only joins them.
+SUBSTEPS = 8  # curve points per frame interval
+
+
+def hermite_path(t: np.ndarray, x: np.ndarray, v: np.ndarray, substeps: int = SUBSTEPS) -> np.ndarray:
+    """Points (substeps·(F−1) + 1, D) of the piecewise cubic Hermite curve through
+    positions x (F, D) with velocities v (F, D) at times t (F,)."""
+    if len(t) < 2:
+        return np.asarray(x)
+    h = np.diff(t)[:, None, None]
+    s = np.linspace(0.0, 1.0, substeps, endpoint=False)[None, :, None]
+    s2, s3 = s * s, s * s * s
+    p = ((2 * s3 - 3 * s2 + 1) * x[:-1, None] + (s3 - 2 * s2 + s) * h * v[:-1, None]
+         + (3 * s2 - 2 * s3) * x[1:, None] + (s3 - s2) * h * v[1:, None])
+    return np.vstack([p.reshape(-1, x.shape[1]), x[-1:]])
+
+
+def _paths(a: RunAnalysis, balls: int, seconds: float):
+    """(curve, stored frames) per drawn ball, mm, jar frame."""
     fr = a.store.frames
     sel = (fr["time"] >= a.t0) & (fr["time"] < a.t0 + seconds)
-    _outline(ax, a)
+    t = fr["time"][sel]
     for b in range(min(balls, a.geom.n_balls)):
-        x = fr["position"][sel, b] * MM
-        ax.plot(x[:, 0], x[:, 1], lw=0.8, label=f"ball {b}")
-    ax.set(xlabel="x (mm, jar frame)", ylabel="y (mm)", title=f"Trajectories, top view ({seconds:g} s of stored frames)")
+        x, v = fr["position"][sel, b], fr["velocity"][sel, b]
+        yield hermite_path(t, x, v) * MM, x * MM
+
+
+def draw_trajectories_top(ax, a: RunAnalysis, balls: int = 3, seconds: float = 0.5):
+    _outline(ax, a)
+    for b, (curve, stored) in enumerate(_paths(a, balls, seconds)):
+        line, = ax.plot(curve[:, 0], curve[:, 1], lw=0.7, label=f"ball {b}")
+        ax.plot(stored[:, 0], stored[:, 1], ".", ms=2.5, color=line.get_color())
+    ax.set(xlabel="x (mm, jar frame)", ylabel="y (mm)",
+           title=f"Trajectories, top view ({seconds:g} s; dots: stored frames)")
     ax.legend(loc="upper right")
 
 
 def draw_trajectories_section(ax, a: RunAnalysis, balls: int = 3, seconds: float = 0.5):
-    fr = a.store.frames
-    sel = (fr["time"] >= a.t0) & (fr["time"] < a.t0 + seconds)
     x0, x1 = a.geom.profile.outline[:, 0].min() * MM, a.geom.profile.outline[:, 0].max() * MM
     H = a.geom.height * MM
     ax.plot([x0, x1, x1, x0, x0], [0, 0, H, H, 0], color="0.2", lw=1.2)
-    for b in range(min(balls, a.geom.n_balls)):
-        x = fr["position"][sel, b] * MM
-        ax.plot(x[:, 0], x[:, 2], lw=0.8)
+    for curve, stored in _paths(a, balls, seconds):
+        line, = ax.plot(curve[:, 0], curve[:, 2], lw=0.7)
+        ax.plot(stored[:, 0], stored[:, 2], ".", ms=2.5, color=line.get_color())
     ax.set(xlabel="x (mm, jar frame)", ylabel="z (mm)", title="Trajectories, section")
     ax.set_aspect("equal")
 
@@ -177,15 +208,18 @@ def draw_energy(ax, a: RunAnalysis):
     ax.plot(t, en["drive_work"], label="drive work (walls on balls)")
     ax.plot(t, en["dissipated"], label="dissipated by contacts")
     ax.plot(t, mech - mech[0] if len(mech) else mech, label="kinetic + potential + elastic − initial")
-    ax.axvline(a.t0, color="0.5", ls=":", lw=1)
+    ax.axvline(a.t0, color="0.5", ls=":", lw=1, label=f"analysis start ({a.t0:g} s)")
     ax.set(xlabel="simulated time (s)", ylabel="energy (J)", title="Energy budget")
-    ax.legend(loc="upper left")
+    axes = [ax]
     if len(t):
         bal = (mech + en["dissipated"]) - (mech[0] + en["drive_work"])
         scale = max(float(np.abs(en["drive_work"]).max()), 1e-300)
         ax2 = ax.twinx()
-        ax2.plot(t, 100 * bal / scale, color="0.4", lw=0.7)
+        ax2.plot(t, 100 * bal / scale, color="0.4", lw=0.7, label="balance error (right axis)")
         ax2.set_ylabel("balance error (% of drive work)", color="0.4")
+        axes.append(ax2)  # drawn on top: the legend goes there, not hidden by its curve
+    handles = [h for axis in axes for h in axis.get_legend_handles_labels()[0]]
+    axes[-1].legend(handles=handles, loc="upper left")
 
 
 def _caption(a: RunAnalysis, what: str) -> str:

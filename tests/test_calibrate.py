@@ -140,6 +140,30 @@ def test_thesis_procedure_one_drop_height_gives_the_thesis_d(tmp_path, pair, h0_
     assert fit["rows"][0]["e_fit"] == pytest.approx(e, abs=1e-3)
 
 
+def fit_table(text: str) -> list[list[str]]:
+    """The rows of `taimill calibrate fit`'s printed table, split into cells."""
+    lines = text.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.split()[:2] == ["h0", "mm"]) + 1
+    return [line.split() for line in lines[start:] if line.split() and line.split()[0][0].isdigit()]
+
+
+@pytest.mark.parametrize("columns", ["h0_mm,rebound_mm,e", "h0_mm,e"])
+def test_fit_table_shows_the_measured_rebound_of_the_data(tmp_path, capsys, columns):
+    # Table 2.1's rows at 300 and 700 mm: e² h0 = 221.9 and 592.5 mm, measured 215 and 582
+    rows = {"300": ("215", "0.86"), "700": ("582", "0.92")}
+    csv = tmp_path / "drops.csv"
+    csv.write_text(columns + "\n" + "".join(f"{h},{hr},{e}\n" if "rebound" in columns else f"{h},{e}\n"
+                                            for h, (hr, e) in rows.items()))
+    code, out, _ = cli(capsys, "calibrate", "fit", "--pair", "zirconia-zirconia", "--data", csv)
+    assert code == 0, out
+    shown = {cells[0]: cells for cells in fit_table(out)}  # h0, e meas, e sim, Δe, h* meas, h* sim, Δh*, 2σ
+    for h, (hr, e) in rows.items():
+        expected = float(hr) if "rebound" in columns else float(e) ** 2 * float(h)
+        assert float(shown[h][4]) == pytest.approx(expected, abs=0.05)
+        assert float(shown[h][6]) == pytest.approx(float(shown[h][5]) - expected, abs=0.11)
+    assert ("e²·h0 where the data give no rebound_mm" in out) == ("rebound" not in columns)
+
+
 def test_table_2_1_fit_of_d_next_to_the_thesis_value(table_fit):
     # Thesis §2.2.1 fitted d = 0.114 mm at one height (3.3 m/s ≈ 555 mm); fitting all
     # eight heights of Table 2.1 must land within 15 % of it (c_max fixed at 0.57 N·s/mm).
@@ -149,8 +173,11 @@ def test_table_2_1_fit_of_d_next_to_the_thesis_value(table_fit):
     assert 0 < fit["uncertainty"] < 0.3 * fit["value"]
     rows = fit["rows"]
     assert [r["h0_mm"] for r in rows] == pytest.approx([100, 200, 300, 400, 500, 600, 700, 800])
+    # h* meas is the table's measured rebound, not e² h0 of its (fitted) mean e
+    assert [r["rebound_measured_mm"] for r in rows] == pytest.approx([76, 155, 215, 322, 404, 483, 582, 646])
     for r in rows:
-        assert r["residual_mm"] == pytest.approx((r["e_fit"] ** 2 - r["e_measured"] ** 2) * r["h0_mm"], abs=1e-9)
+        assert r["rebound_measured_from"] == "rebound_mm"
+        assert r["residual_mm"] == pytest.approx(r["e_fit"] ** 2 * r["h0_mm"] - r["rebound_measured_mm"], abs=1e-9)
     # The Adams law's e falls with speed (damping ramps in over d ≫ u_max) while the
     # data stay near 0.9: around the thesis' fitting speed (500, 600 mm) it is within
     # the 2σ = 0.04 scatter, at 100-300 mm it is not — and the fit says so.

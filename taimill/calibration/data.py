@@ -23,11 +23,20 @@ class DropData:
     h0: np.ndarray  #: m, drop heights
     e: np.ndarray  #: measured restitution, eq 2.5
     sigma: np.ndarray  #: 1 s.d. of e per row (nan: not given, the fit's --scatter applies)
+    measured_rebound: np.ndarray | None = None  #: m, the file's rebound_mm per row (nan: not given)
 
     @property
     def rebound(self) -> np.ndarray:
         """Rebound heights h* = e² h₀ (m), eq 2.5."""
         return self.e**2 * self.h0
+
+    @property
+    def rebound_shown(self) -> np.ndarray:
+        """The measured rebound heights (m): the file's rebound_mm where it gives one, else
+        e² h₀. (With both columns the file's e is fitted, and the rows of Table 2.1 show
+        that e² h₀ is not the measured rebound: a mean of e is not √(mean h*/h₀).)"""
+        given = np.full_like(self.h0, np.nan) if self.measured_rebound is None else self.measured_rebound
+        return np.where(np.isfinite(given), given, self.rebound)
 
 
 def _number(path, line, col, text, lo, hi, unit=""):
@@ -54,14 +63,17 @@ def load_drop_data(path) -> DropData:
     header = [c.strip() for c in next(csv.reader([lines[0][1]]))]
     if "h0_mm" not in header or not {"rebound_mm", "e"} & set(header):
         raise ConfigError(path, "columns", ",".join(header), "need h0_mm and rebound_mm or e (optional sigma_e or sigma_mm)")
-    h0, e, sigma = [], [], []
+    h0, e, sigma, rebound = [], [], [], []
     for line, row in lines[1:]:
         cells = dict(zip(header, (c.strip() for c in next(csv.reader([row])))))
         h = _number(path, line, "h0_mm", cells.get("h0_mm"), 0, MAX_HEIGHT_MM, " mm")
+        hr = math.nan
+        if "rebound_mm" in header and (cells.get("rebound_mm") or "e" not in header):
+            hr = _number(path, line, "rebound_mm", cells.get("rebound_mm"), 0, h, " mm (h* <= h0)")
         if "e" in header:
             ei = _number(path, line, "e", cells.get("e"), 0, 1)
         else:
-            ei = math.sqrt(_number(path, line, "rebound_mm", cells.get("rebound_mm"), 0, h, " mm (h* <= h0)") / h)
+            ei = math.sqrt(hr / h)
         s = math.nan
         if "sigma_e" in header:
             s = _number(path, line, "sigma_e", cells.get("sigma_e"), 0, 1)
@@ -70,6 +82,7 @@ def load_drop_data(path) -> DropData:
         h0.append(h * 1e-3)
         e.append(ei)
         sigma.append(s)
+        rebound.append(hr * 1e-3)
     if not h0:
         raise ConfigError(path, "rows", 0, "no data rows after the header")
-    return DropData(str(path), np.array(h0), np.array(e), np.array(sigma))
+    return DropData(str(path), np.array(h0), np.array(e), np.array(sigma), np.array(rebound))

@@ -191,11 +191,13 @@ def fit_drops(pair: str, data: DropData, *, param: str | None = None, law: str |
     s2 = chi2_min / (n - 1) if n > 1 else 1.0
     uncertainty = math.sqrt(s2 / float((jac / sigma) @ (jac / sigma)))
     res = e_best - data.e
+    given = np.full_like(data.h0, np.nan) if data.measured_rebound is None else data.measured_rebound
     rows = [{
         "h0_mm": h0 * 1e3, "e_measured": em, "e_fit": ef, "residual_e": r, "sigma_e": s,
-        "rebound_measured_mm": em**2 * h0 * 1e3, "rebound_fit_mm": ef**2 * h0 * 1e3,
-        "residual_mm": (ef**2 - em**2) * h0 * 1e3, "within_scatter": bool(abs(r) <= WITHIN * s),
-    } for h0, em, ef, r, s in zip(data.h0, data.e, e_best, res, sigma)]
+        "rebound_measured_mm": hm * 1e3, "rebound_measured_from": "rebound_mm" if np.isfinite(hg) else "e² h0",
+        "rebound_fit_mm": ef**2 * h0 * 1e3, "residual_mm": (ef**2 * h0 - hm) * 1e3,
+        "within_scatter": bool(abs(r) <= WITHIN * s),
+    } for h0, em, ef, r, s, hm, hg in zip(data.h0, data.e, e_best, res, sigma, data.rebound_shown, given)]
     return {
         "pair": pair, "law": bw.law, "data": data.source, "param": p.name, "unit": p.unit,
         "value": x_best, "uncertainty": uncertainty, "start": p.start, "start_from": p.origin, "pair_value": p.current,

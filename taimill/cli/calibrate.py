@@ -97,6 +97,8 @@ def cmd_fit(a) -> int:
     ]
     lines += [f"{r['h0_mm']:8g} {r['e_measured']:7.4f} {r['e_fit']:7.4f} {r['residual_e']:+8.4f} {r['rebound_measured_mm']:8.1f} "
               f"{r['rebound_fit_mm']:8.1f} {r['residual_mm']:+7.1f}  {'yes' if r['within_scatter'] else 'NO'}" for r in fit["rows"]]
+    if any(r["rebound_measured_from"] != "rebound_mm" for r in fit["rows"]):
+        lines.append("h* meas: e²·h0 where the data give no rebound_mm")
     outside = [f"{r['h0_mm']:g}" for r in fit["rows"] if not r["within_scatter"]]
     lines.append("all heights within the scatter" if not outside else
                  f"outside the scatter (|Δe| > 2σ) at h0 = {', '.join(outside)} mm: the law's e(h0) does not follow the data there")

@@ -4,6 +4,7 @@ bad values are refused with a message and change nothing, pause/resume, recordin
 
 import subprocess
 import sys
+import threading
 
 import numpy as np
 import pytest
@@ -16,7 +17,9 @@ from taimill.model.drive import RPM
 from taimill.model.params import ROOT, load_preset
 from taimill.runs.live import LiveMill
 from taimill.store.run import open_run
+from taimill.tui import app as app_module
 from taimill.tui.app import MillApp
+from taimill.tui.help import FIELDS_TEXT, KEYS
 
 P4 = ROOT / "presets" / "p4-cy-steel.toml"
 SIZE = (120, 40)
@@ -234,6 +237,106 @@ async def test_unstable_run_stops_with_a_message_and_reset_recovers(mill, tmp_pa
         await pilot.press("r", "p")
         await wait_until(pilot, lambda: mill.time > 0.01)
         assert not app.loop.paused
+
+
+async def test_tab_hint_is_visible_and_shift_tab_enters_the_fields_at_the_first(mill, tmp_path):
+    app = MillApp(mill, out_dir=tmp_path, paused=True)
+    async with app.run_test(size=SIZE) as pilot:
+        hint = app.query_one("#hint")
+        assert "Tab / Shift+Tab: next / previous" in str(hint.render())
+        assert hint.region.height >= 4 and app.screen.region.contains_region(hint.region)  # on screen
+        assert "Tab moves between fields" in message(app)
+        await pilot.press("shift+tab")
+        assert app.focused.id == "plate-rpm"  # not the jar list at the end of the chain
+        await pilot.press("shift+tab")
+        assert app.focused.id == "jar"  # from the first field it goes round, as Tab does the other way
+        await pilot.press("escape", "tab")
+        assert app.focused.id == "plate-rpm"
+        await pilot.press("tab")
+        assert app.focused.id == "ratio"
+
+
+async def test_enter_applies_and_leaves_the_field_escape_drops_what_was_typed(mill, tmp_path):
+    app = MillApp(mill, out_dir=tmp_path, paused=True)
+    async with app.run_test(size=SIZE) as pilot:
+        await enter(pilot, "plate-rpm", "250")
+        assert mill.plate_rpm == 250 and app.focused is None
+        await pilot.press("p")  # a letter acts again instead of typing into the field
+        assert value(app, "plate-rpm") == "250" and not app.loop.paused
+        await pilot.press("p")
+        app.query_one("#ramp-time").focus()
+        await pilot.pause()
+        await pilot.press("5", "escape")
+        assert app.focused is None and value(app, "ramp-time") == "1" and mill.target.ramp_time == 1
+
+
+async def test_mu_s_and_mu_d_are_applied_as_a_pair(mill, tmp_path):
+    # from the preset's (1, 0.8): μ_s = 0.3 alone would put μ_d above μ_s
+    app = MillApp(mill, out_dir=tmp_path, paused=True)
+    async with app.run_test(size=SIZE) as pilot:
+        await enter(pilot, "mu-s", "0.3")
+        assert "mu_d = 0.8: dynamic friction must not exceed static mu_s = 0.3" in message(app)
+        assert (mill.friction.mu_s, mill.friction.mu_d) == (1, 0.8) and value(app, "mu-s") == "1"
+        app.query_one("#mu-s").focus()
+        await pilot.pause()
+        await pilot.press("0", ".", "3", "tab", "0", ".", "2", "enter")  # typed in both, one Enter
+        await pilot.pause()
+        assert (mill.friction.mu_s, mill.friction.mu_d) == (0.3, 0.2) and (mill.F.mu_s[0], mill.F.mu_d[0]) == (0.3, 0.2)
+        assert "μ_s = 0.3, μ_d = 0.2" in message(app)
+        app.query_one("#mu-d").focus()
+        await pilot.pause()
+        await pilot.press("0", ".", "5", "shift+tab", "0", ".", "6", "enter")  # both raised, Enter in μ_s
+        await pilot.pause()
+        assert (mill.friction.mu_s, mill.friction.mu_d) == (0.6, 0.5)
+        assert [(c["mu_s"], c["mu_d"]) for c in mill.changes] == [(0.3, 0.2), (0.6, 0.5)]  # one change each
+
+
+async def test_k_label_help_and_readme_define_k_alike(mill, tmp_path):
+    readme = (ROOT / "README.md").read_text()
+    assert "K = ω/Ω + 1" in readme and "taimill view" in readme
+    help_text = FIELDS_TEXT + "".join(what for _, what in KEYS)
+    assert "ω/Ω + 1" in help_text and "taimill view FILE" in help_text and "`rerun FILE`" not in help_text
+    app = MillApp(mill, out_dir=tmp_path, paused=True)
+    async with app.run_test(size=SIZE):
+        assert str(app.query_one("#label-ratio").render()) == "K = ω/Ω + 1"
+
+
+async def test_side_panel_fits_120_columns(mill, tmp_path):
+    app = MillApp(mill, out_dir=tmp_path, paused=True)
+    async with app.run_test(size=SIZE) as pilot:
+        lines = str(app.readouts.render()).splitlines()
+        assert lines[-1].startswith("regime") and len(lines) <= app.readouts.size.height  # no row cut off
+        assert max(map(len, lines)) <= app.readouts.size.width
+        # long numbers in the history captions: the range gets fewer digits, never cut
+        app.history_plots.show({"impact_power": [0.1189, 15.05], "mean_se": [3.396e-4, 4.452e-3],
+                                "dissipated_power": [0.0171234, 4.06912], "collision_rate": [350.0, 3388.0]})
+        await pilot.pause()
+        h = app.history_plots
+        for key in h.labels:
+            caption, span = str(h.labels[key].render()), str(h.ranges[key].render())
+            assert len(caption) <= h.labels[key].size.width and len(span) <= h.ranges[key].size.width
+        assert str(h.labels["dissipated_power"].render()) == "dissipated power 4.069 W"
+        assert str(h.ranges["dissipated_power"].render()).split() == ["0.01712", "…", "4.069", "W"]
+        assert app.screen.region.contains_region(h.ranges["collision_rate"].region)  # the last line on screen
+
+
+async def test_png_key_says_at_once_that_it_writes(mill, tmp_path, monkeypatch):
+    gate = threading.Event()
+    real = app_module.save_png
+
+    def slow(path, **figure):  # as matplotlib on a busy machine
+        gate.wait(30)
+        real(path, **figure)
+
+    monkeypatch.setattr(app_module, "save_png", slow)
+    app = MillApp(mill, out_dir=tmp_path, paused=True)
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.press("g")
+        assert message(app).startswith("writing PNG") and str(tmp_path) in message(app)
+        gate.set()
+        await wait_until(pilot, lambda: "figures saved" in message(app))
+        png, = tmp_path.glob("*.png")
+        assert str(png) in message(app)
 
 
 def test_cli_refuses_bad_input_before_any_kernel(tmp_path):

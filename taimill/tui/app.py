@@ -35,7 +35,7 @@ from taimill.tui.recorders import Recorders
 from taimill.tui.simloop import SimulationLoop
 
 TEXT_PERIOD = 0.25  # wall s between updates of the time and speed texts
-HINT = "Enter applies a field · Esc leaves it · letter keys act outside fields · ? help"
+HINT = "Tab moves between fields · Enter applies a field and leaves it · letter keys act outside fields · ? help"
 
 
 class MillApp(App):
@@ -264,6 +264,7 @@ class MillApp(App):
             self.post_message(Notice(f"cannot record {kind}: {err}", error=True))
 
     def action_snapshot(self):
+        """Draw the PNG in a worker (≈ 1-8 s: matplotlib); say so at once, then the path."""
         f = self.last_frame or self.loop.frame()
         p = self.mill.preset
         self.out_dir.mkdir(parents=True, exist_ok=True)
@@ -271,6 +272,7 @@ class MillApp(App):
         title = (f"{Path(p.source).name}: {p.jar.name} jar, {self.mill.n_balls} balls, {p.pair} μ_s {p.friction.mu_s:g} "
                  f"μ_d {p.friction.mu_d:g}, Ω = {self.mill.plate_rpm:g} rpm, K = {self.mill.ratio:.4g}")
         history = {k: list(h) for k, h in self.loop.history.items()}
+        self._message(f"writing PNG {path} …")
         self._save_png(path, dict(title=title, outline=p.jar.profile.outline, height=p.jar.height, position=f.position,
                                   radius=self.mill.radius, psi=f.psi, history=history, series=SERIES,
                                   readouts=text_lines(dict(self.last_values)),
@@ -285,7 +287,17 @@ class MillApp(App):
         self.push_screen(HelpScreen())
 
     def action_leave_field(self):
+        """Leave the field; text typed but not applied goes back to what the mill runs."""
         self.set_focus(None)
+        self.controls.show(self.settings())
+
+    def action_focus_previous(self):
+        """Shift+Tab from outside the fields enters them at the first one, as Tab does
+        (not at the last, the jar list, whose change restarts the mill)."""
+        if self.focused is None and self.screen is self.screen_stack[0]:
+            self.controls.query_one("Input").focus()
+        else:
+            super().action_focus_previous()
 
     def action_quit(self):
         """Close recordings properly, then leave (on_unmount stops the worker)."""

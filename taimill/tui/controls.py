@@ -1,10 +1,13 @@
 """The control panel: plate speed Ω, jar speed as K or ω (the other one shown), ramp
 time, friction (μ_s, μ_d or a material pair), jar and ball count.
 
-A field takes effect on Enter. It only parses the number: the ranges live in
-`taimill.runs.live.LIMITS`, checked by the LiveMill (ConfigError naming the field and
-its range); the input's red border while typing uses the same limits. When Ω changes,
-the jar speed last entered (K or ω) is the one held.
+A field takes effect on Enter, which also leaves it (so letter keys act again); Tab and
+Shift+Tab move between fields, as the panel's hint says. It only parses the number:
+the ranges live in `taimill.runs.live.LIMITS`, checked by the LiveMill (ConfigError
+naming the field and its range); the input's red border while typing uses the same
+limits. When Ω changes, the jar speed last entered (K or ω) is the one held. μ_s and
+μ_d are applied as a pair (Enter in either sends both fields as typed), so a lower μ_s
+with a lower μ_d is one change, not one refused for μ_d > μ_s.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ from taimill.tui.messages import FrictionRequested, Notice, RebuildRequested, Sp
 # input id -> (label, key of LIMITS)
 FIELDS = {
     "plate-rpm": ("Ω plate rpm", "plate_rpm"),
-    "ratio": ("K = w/Ω", "ratio"),
+    "ratio": ("K = ω/Ω + 1", "ratio"),
     "jar-rpm": ("ω jar rpm", "jar_rpm"),
     "ramp-time": ("ramp s", "ramp_time"),
     "mu-s": ("μ_s static", "mu_s"),
@@ -54,8 +57,13 @@ class Controls(Vertical):
     Controls .row Label { width: 13; }
     Controls .row Label.held { text-style: bold; color: $accent; }
     Controls .row Input, Controls .row Select { width: 1fr; }
-    Controls .title { text-style: bold; margin: 0 0 1 0; }
+    Controls .title { text-style: bold; }
+    Controls .hint { color: $text-muted; margin: 0 0 1 0; }
     """
+    HINT = ("Tab / Shift+Tab: next / previous\n"
+            "Enter: apply and leave the field\n"
+            "Esc: leave, keep what runs\n"
+            "μ_s and μ_d apply as a pair")
 
     def __init__(self, values: dict, **kw):
         super().__init__(**kw)
@@ -63,7 +71,8 @@ class Controls(Vertical):
         self.hold = "ratio" if math.isfinite(values["ratio"]) else "jar_rpm"
 
     def compose(self) -> ComposeResult:
-        yield Static("Controls (Enter applies)", classes="title")
+        yield Static("Controls", classes="title")
+        yield Static(self.HINT, id="hint", classes="hint", markup=False)
         for fid, (label, key) in FIELDS.items():
             lo, hi = LIMITS[key]
             check = Integer(lo, hi) if key == "balls" else Number(lo, hi)
@@ -97,15 +106,29 @@ class Controls(Vertical):
             self.query_one(f"#label-{fid}", Label).set_class(self.hold == key, "held")
 
     def on_input_submitted(self, event: Input.Submitted):
+        """Apply the field (μ_s and μ_d together), then leave it."""
         event.stop()
-        label, key = FIELDS[event.input.id]
-        text = event.value.strip()
         try:
-            value = int(text) if key == "balls" else float(text)
+            self._submit(event.input.id, event.value)
+        finally:
+            self.screen.set_focus(None)
+
+    def _number(self, fid: str, text: str):
+        """The field's number, or None after a refusal naming the field and its range."""
+        label, key = FIELDS[fid]
+        text = text.strip()
+        try:
+            return int(text) if key == "balls" else float(text)
         except ValueError:
             lo, hi = LIMITS[key]
             self.post_message(Notice(f"refused {key} = {text!r} ({label}): not a number; allowed range [{lo:g}, {hi:g}]", error=True))
             self.show(self.values)
+            return None
+
+    def _submit(self, fid: str, text: str):
+        key = FIELDS[fid][1]
+        value = self._number(fid, text)
+        if value is None:
             return
         v = self.values
         if key == "plate_rpm":
@@ -117,7 +140,10 @@ class Controls(Vertical):
         elif key == "ramp_time":
             self.post_message(SpeedsRequested(v["plate_rpm"], **{self.hold: v[self.hold]}, ramp_time=value))
         elif key in ("mu_s", "mu_d"):
-            self.post_message(FrictionRequested(**{key: value}))
+            other = "mu-d" if key == "mu_s" else "mu-s"
+            pair = self._number(other, self.query_one(f"#{other}", Input).value)
+            if pair is not None:
+                self.post_message(FrictionRequested(**{key: value, FIELDS[other][1]: pair}))
         else:
             self.post_message(RebuildRequested(balls=value))
 

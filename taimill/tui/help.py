@@ -11,11 +11,12 @@ KEYS = (
     ("p / space", "pause or resume the simulation"),
     ("s", "step: advance one output frame (1/100 s by default) and pause"),
     ("r", "reset: back to t = 0, balls re-placed, speeds ramp up from rest"),
-    ("o", "start / stop recording to a rerun file (.rrd, open with `rerun FILE`)"),
+    ("o", "start / stop recording to a rerun file (.rrd, open it with `taimill view FILE`)"),
     ("z", "start / stop recording to a zarr store (read with taimill.store.run.open_run)"),
     ("g", "save the current figures (views, history, readouts) as a PNG"),
     ("? / f1", "this help"),
-    ("escape", "leave a field, so that the letter keys act again"),
+    ("tab", "next field (shift+tab: previous); Enter applies a field and leaves it"),
+    ("escape", "leave a field without applying it, so that the letter keys act again"),
     ("q", "quit (recordings are closed properly)"),
 )
 
@@ -23,11 +24,12 @@ FIELDS_TEXT = """\
 Fields take effect on Enter; a value outside its range is refused with a message,
 and the simulation keeps running with the old one.
   Ω          plate speed (rpm)
-  K          w/Ω = ω/Ω + 1: absolute jar spin over plate speed (K < 0: counter-rotation)
+  K          ω/Ω + 1 (= w/Ω, the jar's absolute spin w over Ω); K < 0: counter-rotation
   ω          jar speed relative to the plate (rpm); entering K or ω shows the other,
              and the last one entered is held when Ω changes
   ramp       time (s) a speed change takes (smooth ramp, so the Euler terms stay right)
-  μ_s, μ_d   static and dynamic friction (eq 3.7), μ_d ≤ μ_s; or pick a material pair
+  μ_s, μ_d   static and dynamic friction (eq 3.7), μ_d ≤ μ_s, applied as a pair: Enter in
+             either applies both as typed; or pick a material pair
   jar, balls a new jar or ball count restarts the mill at t = 0
 Readouts are over a sliding window of simulated time; K_c is the single-ball critical
 ratio (docs/model.md). Views: jar frame, from above (red mark: direction away from the plate

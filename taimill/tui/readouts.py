@@ -42,7 +42,7 @@ def text_lines(values: dict) -> list[str]:
 
 class Readouts(Static):
     DEFAULT_CSS = """
-    Readouts { height: 15; }
+    Readouts { height: 16; }
     """
 
     def __init__(self, window: float, **kw):

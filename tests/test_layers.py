@@ -33,10 +33,11 @@ LAYERS: dict[str, set[str]] = {
     "analysis": NEUTRAL | {"model", "store"},
     "figures": NEUTRAL | {"model", "store", "analysis"},
     "recording": NEUTRAL | {"model", "store", "analysis"},
+    "bridge": NEUTRAL | {"model", "store", "analysis"},
     "runs": NEUTRAL | {"model", "physics", "store", "analysis"},
     "calibration": NEUTRAL | {"model", "physics", "store", "analysis", "runs"},
     "tui": NEUTRAL | {"model", "store", "analysis", "figures", "recording", "runs"},
-    "cli": NEUTRAL | {"model", "store", "analysis", "figures", "recording", "runs", "calibration", "tui"},
+    "cli": NEUTRAL | {"model", "store", "analysis", "figures", "recording", "runs", "calibration", "tui", "bridge"},
 }
 # The recording takes its colour tables from matplotlib's colormaps; it draws nothing.
 THIRD_PARTY_HOMES = {"taichi": {"physics"}, "matplotlib": {"figures", "recording"}}

@@ -7,10 +7,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-from taimill.cli import calibrate, catalog, record, report, run, sweep, tui
+from taimill.cli import calibrate, catalog, compare, liggghts, record, report, run, sweep, tui
 from taimill.cli.common import EXIT_BAD_INPUT
 
-SUBCOMMANDS = (run, calibrate, catalog, sweep, report, record, tui)
+SUBCOMMANDS = (run, calibrate, catalog, sweep, report, record, tui, liggghts, compare)
 
 
 def parser() -> argparse.ArgumentParser:

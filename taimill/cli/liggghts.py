@@ -1,0 +1,78 @@
+"""`taimill export liggghts PRESET --out DIR` (a ready-to-run LIGGGHTS case) and
+`taimill import liggghts DIR --out RUN.zarr` (its dumps as a taimill run store);
+docs/liggghts.md. Approximations of the mapping are printed as warnings on stderr;
+what LIGGGHTS cannot express stops with one line and exit code 2."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+from taimill.cli.common import add_overrides, overrides, plain, summary_table
+
+
+def register(sub) -> None:
+    e = sub.add_parser("export", help="write a preset as a case for another DEM code")
+    es = e.add_subparsers(dest="target", required=True)
+    x = es.add_parser("liggghts", help="a LIGGGHTS-PUBLIC 3.8 case: jar STL, input deck, start positions, run.sh")
+    x.add_argument("preset", help="preset TOML file, e.g. presets/p4-cy-steel.toml")
+    x.add_argument("--out", required=True, help="case directory to write")
+    x.add_argument("--overwrite", action="store_true", help="replace an existing case directory")
+    x.add_argument("--strict", action="store_true",
+                   help="refuse what LIGGGHTS can only approximate (a speed-dependent restitution, stiction)")
+    x.add_argument("--dump-mesh", action="store_true", help="also dump the moving jar mesh (STL) with every frame")
+    x.add_argument("--liggghts", default="liggghts", help="LIGGGHTS binary run.sh calls (default: liggghts)")
+    add_overrides(x)
+    x.set_defaults(fn=cmd_export)
+    i = sub.add_parser("import", help="read another DEM code's output back as a taimill run store")
+    is_ = i.add_subparsers(dest="source", required=True)
+    y = is_.add_parser("liggghts", help="the dumps of a case written by `taimill export liggghts`")
+    y.add_argument("case", metavar="DIR", help="the case directory, after LIGGGHTS ran in it")
+    y.add_argument("--out", required=True, help="zarr run store to write (RUN.zarr)")
+    y.add_argument("--overwrite", action="store_true", help="replace an existing store")
+    y.add_argument("--dump", help="dump file (default: the case's dumps/balls.dump)")
+    y.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    y.set_defaults(fn=cmd_import)
+
+
+def _check_out(path: str, overwrite: bool) -> None:
+    from taimill.errors import ConfigError
+
+    p = Path(path)
+    if p.exists() and not overwrite:
+        raise ConfigError("command line", "--out", path, "exists; pass --overwrite to replace it")
+
+
+def cmd_export(a) -> int:
+    from taimill.bridge.liggghts import export_case
+    from taimill.model.params import load_preset
+
+    preset = load_preset(a.preset, overrides(a))
+    _check_out(a.out, a.overwrite)
+    if Path(a.out).exists():
+        shutil.rmtree(a.out)
+    result = export_case(preset, a.out, strict=a.strict, dump_mesh=a.dump_mesh, liggghts=a.liggghts)
+    for w in result.mapping.warnings:
+        print(f"taimill: warning: {w}", file=sys.stderr)
+    print(result.describe())
+    return 0
+
+
+def cmd_import(a) -> int:
+    from taimill.bridge.dumps import import_case
+    from taimill.errors import ConfigError
+
+    if not Path(a.case).is_dir():
+        raise ConfigError("command line", "DIR", a.case, "an existing case directory (taimill export liggghts --out)")
+    _check_out(a.out, a.overwrite)
+    summary = import_case(a.case, a.out, dump=a.dump)
+    if a.json:
+        print(json.dumps(plain(summary)))
+        return 0
+    print(f"{a.case}: LIGGGHTS dumps, {summary['sim_seconds']:g} s; collision events reconstructed from the frames "
+          "(store attribute events_source); no energy ledger (energy_source)")
+    print(summary_table(summary))
+    print(f"stored in {a.out}")
+    return 0

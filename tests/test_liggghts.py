@@ -287,3 +287,19 @@ def test_hm_and_3l_jars_run_in_liggghts_without_lost_atoms(preset, tmp_path):
     phi = RunGeometry.from_config(p.as_dict(), np.full(p.balls.count, p.balls.radius)).sdf(x[-1, :, :2])[0]
     assert (phi > p.balls.radius - 1e-4).all()  # every ball still inside the jar
     assert (tmp_path / "case" / MANIFEST).exists()
+
+
+@needs_liggghts
+@pytest.mark.full
+def test_acceptance_comparison_with_liggghts(tmp_path):
+    # CY, 12 steel balls, 200 rpm, K = -2.2, e = 0.516, μ = 0.8, same start, 2-5 s:
+    # mean SE within 15 % and 1/σ within 10 %, events reconstructed from frames in both
+    # (scripts/liggghts_compare.py; ~10 min of LIGGGHTS on a free core)
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "scripts" / "liggghts_compare.py"
+    spec = importlib.util.spec_from_file_location("liggghts_compare", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    assert script.main(["--out", str(tmp_path / "cmp"), "--results", str(tmp_path / "cmp.md")]) == 0

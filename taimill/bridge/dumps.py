@@ -24,6 +24,7 @@ NumPy only.
 from __future__ import annotations
 
 import json
+import math
 import time
 from pathlib import Path
 
@@ -47,6 +48,7 @@ UNKNOWN_EVENT_COLUMNS = ("peak_force", "dissipated_normal", "dissipated_friction
 ENERGY_SOURCE = ("empty: the dumps hold no drive work and no dissipation, and a ledger without them cannot "
                  "balance")
 BISECTIONS = 40
+SAMPLE_SPACING = 50e-6  #: s, flight samples against the wall (at least 8 per interval)
 
 
 # ---------------------------------------------------------------- dump files
@@ -191,10 +193,12 @@ def reconstruct_events(geom: RunGeometry, radii, mass, t, xg, vg, sg, gravity: f
     for k, p in zip(*np.nonzero(flight | seen)):
         rows.append(("bb", k, int(pi[p]), int(pj[p]), p, tau[k, p]))
     # ---- ball-wall: the ball's ground-frame flight, the wall's exact motion
-    S = samples or 8
+    # samples of the flight per interval: every SAMPLE_SPACING, at least 8
+    S = samples or int(np.clip(math.ceil(dt.max() / SAMPLE_SPACING), 8, 256))
+    chunk = max(1, int(4e6 // (S * N)))
     cand = []
-    for k0 in range(0, F - 1, 512):
-        k1 = min(k0 + 512, F - 1)
+    for k0 in range(0, F - 1, chunk):
+        k1 = min(k0 + chunk, F - 1)
         frac = np.arange(1, S + 1) / S
         tt = t[k0:k1, None] + dt[k0:k1, None] * frac  # (K, S)
         ts = (tt - t[k0:k1, None])[..., None, None]

@@ -49,10 +49,16 @@ def cmd_export(a) -> int:
     from taimill.bridge.liggghts import export_case
     from taimill.model.params import load_preset
 
+    from taimill.bridge.liggghts import MANIFEST
+    from taimill.errors import ConfigError
+
     preset = load_preset(a.preset, overrides(a))
     _check_out(a.out, a.overwrite)
-    if Path(a.out).exists():
-        shutil.rmtree(a.out)
+    out = Path(a.out)
+    if out.exists():
+        if not out.is_dir() or not ((out / MANIFEST).exists() or not any(out.iterdir())):
+            raise ConfigError("command line", "--out", a.out, "exists and is not an exported case; not replaced")
+        shutil.rmtree(out)
     result = export_case(preset, a.out, strict=a.strict, dump_mesh=a.dump_mesh, liggghts=a.liggghts)
     for w in result.mapping.warnings:
         print(f"taimill: warning: {w}", file=sys.stderr)

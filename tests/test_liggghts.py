@@ -169,6 +169,11 @@ def test_import_converts_a_ground_frame_free_flight_to_the_jar_frame(tmp_path):
     assert len(run.events["t_start"]) == 0 and len(run.energy["time"]) == 0
     assert "reconstructed from frames" in run.attrs["events_source"] and run.attrs["energy_source"]
     assert run.status == "complete"
+    # a run killed while dumping: the cut snapshot is left out and the store says so
+    dump = case / "dumps" / "balls.dump"
+    dump.write_text(dump.read_text()[:-40])
+    assert dumps.import_case(case, tmp_path / "cut.zarr")["status"] == "incomplete dumps"
+    assert len(open_run(tmp_path / "cut.zarr").frames["time"]) == len(t) - 1
 
 
 def test_reconstructed_impact_has_the_onset_speed_of_the_free_flight():

@@ -54,25 +54,30 @@ SAMPLE_SPACING = 50e-6  #: s, flight samples against the wall (at least 8 per in
 # ---------------------------------------------------------------- dump files
 def read_dump(path) -> tuple[np.ndarray, list[str], np.ndarray]:
     """(timesteps (F,), column names, values (F, N, C)) of a LAMMPS/LIGGGHTS text dump
-    (`dump custom`), each snapshot sorted by atom id. ConfigError if the atom count
-    changes (atoms were lost)."""
+    (`dump custom`), each snapshot sorted by atom id; a last snapshot cut short (the run
+    was killed while it dumped) is left out. ConfigError if the atom count changes
+    (atoms were lost)."""
     steps, snaps, columns, count = [], [], None, None
     with open(path) as f:
         lines = iter(f)
-        for line in lines:
-            if line.startswith("ITEM: TIMESTEP"):
-                steps.append(int(next(lines)))
-            elif line.startswith("ITEM: NUMBER OF ATOMS"):
-                n = int(next(lines))
-                if count is None:
-                    count = n
-                elif n != count:
-                    raise ConfigError(path, "NUMBER OF ATOMS", n, f"{count} atoms at the start: atoms were lost "
-                                      f"by timestep {steps[-1]}")
-            elif line.startswith("ITEM: ATOMS"):
-                columns = line.split()[2:]
-                rows = np.array([next(lines).split() for _ in range(count)], dtype=float)
-                snaps.append(rows[np.argsort(rows[:, columns.index("id")])])
+        try:
+            for line in lines:
+                if line.startswith("ITEM: TIMESTEP"):
+                    step = int(next(lines))
+                elif line.startswith("ITEM: NUMBER OF ATOMS"):
+                    n = int(next(lines))
+                    if count is None:
+                        count = n
+                    elif n != count:
+                        raise ConfigError(path, "NUMBER OF ATOMS", n, f"{count} atoms at the start: atoms were lost "
+                                          f"by timestep {step}")
+                elif line.startswith("ITEM: ATOMS"):
+                    columns = line.split()[2:]
+                    rows = np.array([next(lines).split() for _ in range(count)], dtype=float)
+                    snaps.append(rows[np.argsort(rows[:, columns.index("id")])])
+                    steps.append(step)
+        except (StopIteration, ValueError):  # a snapshot cut short (a run killed while dumping): dropped
+            pass
     if not snaps:
         raise ConfigError(path, "dump", str(path), "holds no snapshot (did LIGGGHTS run?)")
     return np.array(steps), columns, np.array(snaps)

@@ -74,6 +74,8 @@ def read_dump(path) -> tuple[np.ndarray, list[str], np.ndarray]:
                 elif line.startswith("ITEM: ATOMS"):
                     columns = line.split()[2:]
                     rows = np.array([next(lines).split() for _ in range(count)], dtype=float)
+                    if rows.shape != (count, len(columns)):
+                        break
                     snaps.append(rows[np.argsort(rows[:, columns.index("id")])])
                     steps.append(step)
         except (StopIteration, ValueError):  # a snapshot cut short (a run killed while dumping): dropped

@@ -28,6 +28,7 @@ is within O(dt²) of taimill's closed form, tests/test_liggghts.py measures it).
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import shlex
@@ -79,12 +80,20 @@ def _liggghts_restitution(c_tsuji: float) -> float:
     return math.exp(-math.pi * beta / math.sqrt(1.0 - beta * beta))
 
 
-def _hertz_input_e(law, e_target: float) -> float:
+@functools.lru_cache(maxsize=64)
+def _hertz_input_e(e_target: float) -> float:
     """LIGGGHTS input e for which its clamped Hertz contact (limitForce on) rebounds
-    with e_target: taimill's hertz-mindlin calibrated to e_target (scale-free)."""
+    with e_target. The clamped Tsuji law is scale-free, so this is one function of e:
+    bisection on simulated unit impacts (k = m = u = 1) over the input e."""
     mindlin = laws_np.law_by_name("hertz-mindlin")
-    c = laws_np.calibrate_damping(mindlin.id, e_target, law.k, 1.5, law.m_eff, law.u_ref)
-    return _liggghts_restitution(c)
+    lo, hi = (0.05 if e_target > 0.22 else 1e-3), 0.999  # input 0.05 gives 0.21 (near e = 0 impacts end slowly)
+    for _ in range(5):
+        grid = np.linspace(lo, hi, 17)
+        c = [2.0 * math.sqrt(5.0 / 6.0) * laws_np.damping_ratio(e) for e in grid]
+        got = laws_np.simulate_impact(mindlin.id, 1.0, 1.5, c, 1.0, 1.0, 1.0, steps=600)["e"]
+        i = int(np.argmax(got >= e_target)) if (got >= e_target).any() else len(grid) - 1
+        lo, hi = grid[max(i - 1, 0)], grid[i]
+    return float(0.5 * (lo + hi))
 
 
 def _restitution_at(law, speeds) -> np.ndarray:
@@ -97,7 +106,6 @@ def contact_mapping(preset: Preset, *, strict: bool = False) -> Mapping:
     (with `strict`, also for what would only be approximated)."""
     bb, bw = preset.ball_ball, preset.ball_wall
     law = bb.law
-    where = "law" if preset.source else "command line"
     f = preset.friction
     if f.mu_s == f.mu_d:
         friction_note = (f"friction: Coulomb μ = {f.mu_d:g} (LIGGGHTS `tangential history`: a tangential spring "
@@ -139,10 +147,10 @@ def contact_mapping(preset: Preset, *, strict: bool = False) -> Mapping:
         text = (f"{law} has no LIGGGHTS equivalent (its restitution depends on the impact speed: ball-wall e = "
                 + ", ".join(f"{e:.3f}" for e in spread) + " at " + ", ".join(f"{v:g}" for v in speeds) + " m/s)")
         if strict:
-            raise ConfigError(preset.source, where, law,
+            raise ConfigError(preset.source, "law", law,
                               f"{text}; use law = \"hertz-mindlin\" (constant restitution), or export without "
                               "--strict to map it")
-        m.restitution = {"ball_ball": _hertz_input_e(bb, e_bb), "ball_wall": _hertz_input_e(bw, e_bw)}
+        m.restitution = {"ball_ball": _hertz_input_e(round(float(e_bb), 4)), "ball_wall": _hertz_input_e(round(float(e_bw), 4))}
         m.warnings.append(
             f"normal: {text}; mapped to LIGGGHTS `model hertz` (same Hertz stiffness) with the constant "
             f"restitution it has at u_ref = {bb.u_ref:g} m/s: ball-ball {e_bb:.3f}, ball-wall {e_bw:.3f}")

@@ -28,7 +28,7 @@ run: $(VENV)/.installed-run
 
 # pytest exits 5 when it collects nothing: that is not a failure of the suite.
 test: $(VENV)/.installed-test
-	$(PY) -m pytest -q $(PYTEST_ARGS); rc=$$?; if [ $$rc -eq 5 ]; then rc=0; fi; exit $$rc
+	$(PY) -m pytest -q -n auto --dist loadfile $(PYTEST_ARGS); rc=$$?; if [ $$rc -eq 5 ]; then rc=0; fi; exit $$rc
 
 bench: $(VENV)/.installed-run
 	$(PY) scripts/bench.py

@@ -1,4 +1,13 @@
+import os
+
 import pytest
+
+# `make test` runs the suite in one pytest-xdist worker per core. Each worker's Taichi
+# (in-process, and the CLI runs it starts, which inherit the environment) then gets one
+# thread: two workers with two threads each on two cores made the multi-threaded
+# tests wait on each other's spinning thread pools (one test went from 8 s to 196 s).
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    os.environ.setdefault("TI_CPU_MAX_NUM_THREADS", "1")
 
 
 @pytest.fixture(scope="session")

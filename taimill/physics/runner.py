@@ -56,9 +56,9 @@ def init_taichi(threads: int | None = None):
     global _initialised
     if _initialised:
         return
+    if threads:  # through Taichi's own variable: a kwarg beside it would print a warning
+        os.environ["TI_CPU_MAX_NUM_THREADS"] = str(int(threads))
     kw = {}
-    if threads:
-        kw["cpu_max_num_threads"] = threads
     level = os.environ.get("TAIMILL_TI_LOG", "warn")
     # ti.init prints "[Taichi] Starting on arch=…" whatever the log level: kept off stdout
     # (JSON) and off a progress bar's line, shown on stderr only when asked for (info, debug)

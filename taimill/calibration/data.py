@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -11,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from taimill.errors import ConfigError
+from taimill.model.files import csv_cells, read_text
 
 DATA_DIR = Path(__file__).resolve().parent.parent / "data"
 TABLE_2_1 = DATA_DIR / "zirconia_drop_table2_1.csv"
@@ -52,20 +52,17 @@ def _number(path, line, col, text, lo, hi, unit=""):
 def load_drop_data(path) -> DropData:
     """Read a drop-test CSV: h0_mm and rebound_mm or e per row (e wins when both are
     given: see the file format), optional sigma_e or sigma_mm; other columns ignored."""
+    text = read_text(path, "command line", "--data", "CSV file")
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as err:
-        raise ConfigError(path, "data", str(path), f"cannot read ({err.strerror})") from None
     lines = [(i + 1, s) for i, s in enumerate(text.splitlines()) if s.strip() and not s.lstrip().startswith("#")]
     if not lines:
         raise ConfigError(path, "columns", None, "empty file; need a header with h0_mm and rebound_mm or e")
-    header = [c.strip() for c in next(csv.reader([lines[0][1]]))]
+    header = [c.strip() for c in csv_cells(lines[0][1], path, f"line {lines[0][0]}")]
     if "h0_mm" not in header or not {"rebound_mm", "e"} & set(header):
         raise ConfigError(path, "columns", ",".join(header), "need h0_mm and rebound_mm or e (optional sigma_e or sigma_mm)")
     h0, e, sigma, rebound = [], [], [], []
     for line, row in lines[1:]:
-        cells = dict(zip(header, (c.strip() for c in next(csv.reader([row])))))
+        cells = dict(zip(header, (c.strip() for c in csv_cells(row, path, f"line {line}"))))
         h = _number(path, line, "h0_mm", cells.get("h0_mm"), 0, MAX_HEIGHT_MM, " mm")
         hr = math.nan
         if "rebound_mm" in header and (cells.get("rebound_mm") or "e" not in header):

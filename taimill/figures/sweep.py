@@ -24,7 +24,6 @@ missing value. Anything else is an error naming the file, line and column.
 
 from __future__ import annotations
 
-import csv
 import math
 import re
 from pathlib import Path
@@ -33,6 +32,7 @@ import numpy as np
 
 from taimill.analysis.theory import critical_ratio
 from taimill.errors import ConfigError
+from taimill.model.files import csv_cells, read_text
 from taimill.analysis.sweep import CURVE_COLUMNS, REGIMES, mean_band, regime_fractions
 
 CURVE_AXES = (("jar", "{}"), ("balls", "{:.0f} balls"), ("pair", "{}"), ("plate_rpm", "Ω = {:g} rpm"))
@@ -244,15 +244,12 @@ def _save(fig, path: Path) -> Path:
 def read_overlay(path) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray | None]]:
     """Series name → (K, values, ± errors or None) from a CSV in the format of the
     module docstring; ConfigError naming file, line and column for anything else."""
+    text = read_text(path, "command line", "--overlay", "CSV file")
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as err:
-        raise ConfigError("command line", "--overlay", str(path), f"cannot read the file ({err.strerror})") from None
     lines = [(n, ln) for n, ln in enumerate(text.splitlines(), 1) if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise ConfigError(path, "header", None, "the file has no header line: expected 'ratio,SERIES[,SERIES_err]…'")
-    header = [h.strip() for h in next(csv.reader([lines[0][1]]))]
+    header = [h.strip() for h in csv_cells(lines[0][1], path, f"line {lines[0][0]}")]
     if "ratio" not in header:
         raise ConfigError(path, f"line {lines[0][0]}", lines[0][1], "the header needs a column named 'ratio' (K = ω/Ω + 1)")
     if len(header) < 2 or len(set(header)) != len(header) or not all(header):
@@ -261,7 +258,7 @@ def read_overlay(path) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray | N
         raise ConfigError(path, "data", None, "no data line after the header")
     data = np.full((len(lines) - 1, len(header)), np.nan)
     for r, (n, ln) in enumerate(lines[1:]):
-        cells = next(csv.reader([ln]))
+        cells = csv_cells(ln, path, f"line {n}")
         if len(cells) != len(header):
             raise ConfigError(path, f"line {n}", ln, f"{len(cells)} cells; the header has {len(header)} columns")
         for c, cell in enumerate(cells):

@@ -6,15 +6,17 @@ does, with the unit in the key name; everything here is SI (m, kg, s, rad/s).
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import functools
+import io
 import math
-import tomllib
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from taimill.model import geometry
+from taimill.model import files, geometry
 from taimill.model.drive import Drive
 from taimill.errors import ConfigError
 from taimill.model.ranges import RANGES
@@ -25,6 +27,18 @@ ROOT = PACKAGE.parent
 MATERIALS_FILE = PACKAGE / "data" / "materials.toml"
 JARS_DIR = ROOT / "jars"
 GRAVITY = 9.81
+MAX_STEPS = 1e10  #: time steps of one run; more would take years of wall time
+
+# The keys of each kind of table (unknown keys are errors, reported with the nearest known one)
+FRICTION_KEYS = ("mu_s", "mu_d", "v_s_mm_s", "v_d_mm_s")
+PRESET_KEYS = ("jar", "pair", "plate_rpm", "ratio", "jar_rpm", "duration", "analysis_start", "dt", "seed", "law",
+               "initial_positions", "ramp_time", "plate_radius_mm", "gravity", "balls", "outputs", "friction")
+BALLS_KEYS = ("count", "material", "radius_mm")
+OUTPUTS_KEYS = ("trajectory_rate",)
+JAR_KEYS = ("height_mm", "wall_material", "description", "fillet_mm", "profile")
+MATERIAL_KEYS = ("density_kg_m3", "youngs_modulus_gpa", "poisson")
+CONTACT_KEYS = ("ball", "wall", "law", "ball_radius_mm", "ball_ball", "ball_wall")
+NORMAL_LAW_KEYS = ("c_max_Ns_per_mm", "d_mm", "e", "u_ref_mm_s")
 
 
 @dataclass(frozen=True)
@@ -147,11 +161,27 @@ class Preset:
 # ------------------------------------------------------------------ checking
 class _Table:
     """A TOML table being read: remembers the file and key path for error messages,
-    and reports keys nobody asked for (typos must not pass silently)."""
+    and reports keys it does not know (typos must not pass silently, nor be reported
+    as a missing key: `known` is checked first, with the nearest known key suggested)."""
 
-    def __init__(self, data: dict, source: str, prefix: str = "", overridden=frozenset()):
+    def __init__(self, data: dict, source: str, prefix: str = "", overridden=frozenset(), known=None):
+        if not isinstance(data, dict):
+            raise ConfigError(source, prefix.rstrip(".") or "file", data, "must be a table")
         self.data, self.source, self.prefix, self.used = data, source, prefix, set()
         self.overridden = overridden
+        if known is not None:
+            self.expect(known)
+
+    def expect(self, known):
+        """Refuse any key not in `known`."""
+        extra = [k for k in self.data if k not in known]
+        if extra:
+            raise self.unknown(extra[0], known)
+
+    def unknown(self, k, known) -> ConfigError:
+        close = difflib.get_close_matches(str(k), sorted(known), n=1, cutoff=0.6)
+        hint = f" (did you mean '{close[0]}'?)" if close else f"; allowed: {', '.join(sorted(known))}"
+        return ConfigError(self.where(k), self.key(k), self.data[k], f"unknown key '{k}'{hint}")
 
     def key(self, k):
         return f"{self.prefix}{k}"
@@ -183,6 +213,8 @@ class _Table:
             raise ConfigError(src, self.key(k), v, "must be an integer")
         if kind is float and (isinstance(v, bool) or not isinstance(v, (int, float))):
             raise ConfigError(src, self.key(k), v, "must be a number")
+        if kind is float and isinstance(v, int) and abs(v) > 1e300:
+            raise ConfigError(src, self.key(k), v, "must be finite")
         if isinstance(v, float) and not math.isfinite(v):
             raise ConfigError(src, self.key(k), v, "must be finite")
         bad_lo = lo is not None and (v <= lo if lo_open else v < lo)
@@ -192,29 +224,26 @@ class _Table:
             raise ConfigError(src, self.key(k), v, f"allowed range {'(' if lo_open else '['}{lo_s}, {hi_s}]")
         return kind(v)
 
-    def table(self, k, required=True):
+    def table(self, k, required=True, known=None):
         self.used.add(k)
         v = self.data.get(k)
         if v is None and not required:
             return None
+        if v is None:
+            raise ConfigError(self.source, self.key(k), v, "missing (required table)")
         if not isinstance(v, dict):
-            raise ConfigError(self.source, self.key(k), v, "must be a table")
-        return _Table(v, self.source, f"{self.prefix}{k}.", self.overridden)
+            raise ConfigError(self.where(k), self.key(k), v, "must be a table")
+        return _Table(v, self.source, f"{self.prefix}{k}.", self.overridden, known)
 
     def done(self):
-        extra = sorted(set(self.data) - self.used)
+        extra = sorted(set(self.data) - self.used, key=str)
         if extra:
-            raise ConfigError(self.source, self.key(extra[0]), self.data[extra[0]], "unknown key")
+            raise self.unknown(extra[0], self.used)
 
 
-def _read_toml(path: Path, what: str) -> dict:
-    try:
-        with open(path, "rb") as f:
-            return tomllib.load(f)
-    except FileNotFoundError:
-        raise ConfigError(path, what, str(path), "file not found") from None
-    except tomllib.TOMLDecodeError as err:
-        raise ConfigError(path, what, str(path), f"not valid TOML ({err})") from None
+def _read_toml(path: Path, what: str, source=None) -> dict:
+    """A TOML file; `source` (default: the file) is who named it, for read errors."""
+    return files.read_toml(path, path if source is None else source, what)
 
 
 # ------------------------------------------------------------------ materials
@@ -226,7 +255,7 @@ def load_material(name: str, source="material") -> Material:
     db = _materials_db()["material"]
     if name not in db:
         raise ConfigError(source, "material", name, f"must be one of {', '.join(db)}")
-    t = _Table(db[name], MATERIALS_FILE, f"material.{name}.")
+    t = _Table(db[name], MATERIALS_FILE, f"material.{name}.", known=MATERIAL_KEYS)
     m = Material(
         name,
         t.get("density_kg_m3", lo=0, lo_open=True, hi=30000),
@@ -240,12 +269,13 @@ def load_material(name: str, source="material") -> Material:
 def load_friction(name: str, source, key="pair", base: Path | None = None) -> tuple[Friction, str]:
     """A built-in pair, or a pair file (NAME ending in .toml, relative to `base`):
     (friction, contact-set id for `_contact_laws`)."""
+    files.check_path_text(name, source, key, "a pair name or pair file")
     if name.endswith(".toml"):
         return _pair_file(name, source, key, base)
     db = _materials_db()
     if name not in db["pair"]:
         raise ConfigError(source, key, name, f"must be one of {', '.join(db['pair'])}, or a pair file NAME.toml")
-    t = _Table(db["pair"][name], MATERIALS_FILE, f"pair.{name}.")
+    t = _Table(db["pair"][name], MATERIALS_FILE, f"pair.{name}.", known=("contact", *FRICTION_KEYS))
     contact = t.get("contact", kind=str)
     friction = _friction(t, name)
     t.done()
@@ -257,21 +287,24 @@ def _pair_file(name: str, source, key, base: Path | None) -> tuple[Friction, str
     keys and units as materials.toml; materials are the built-in ones). Its contact
     set's id is "FILE#CONTACT"; a contact name the file lacks is a built-in one."""
     path = Path(name) if Path(name).is_absolute() or base is None else base / name
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():
         raise ConfigError(source, key, name, f"no pair file {path}; built-in pairs: {', '.join(_materials_db()['pair'])}")
-    data = _read_toml(path, key)
+    data = _read_toml(path, key, source)
+    top = _Table(data, path)
     extra = sorted(set(data) - {"pair", "contact"})
     if extra:
-        raise ConfigError(path, extra[0], data[extra[0]], "unknown key; a pair file has [pair.NAME] and [contact.NAME] tables")
+        raise top.unknown(extra[0], ("pair", "contact"))
     pairs = data.get("pair")
     if not isinstance(pairs, dict) or len(pairs) != 1:
         raise ConfigError(path, "pair", list(pairs) if isinstance(pairs, dict) else pairs, "a pair file needs exactly one [pair.NAME] table")
     (pair_name, table), = pairs.items()
-    t = _Table(table, path, f"pair.{pair_name}.")
+    t = _Table(table, path, f"pair.{pair_name}.", known=("contact", *FRICTION_KEYS))
     contact = t.get("contact", kind=str)
     friction = _friction(t, pair_name)
     t.done()
     own = data.get("contact", {})
+    if not isinstance(own, dict) or not all(isinstance(v, dict) for v in own.values()):
+        raise ConfigError(path, "contact", own, "[contact.NAME] tables of a normal law (see taimill/data/materials.toml)")
     if contact not in own and contact not in _materials_db()["contact"]:
         raise ConfigError(path, f"pair.{pair_name}.contact", contact, f"no [contact.{contact}] table in the file or built in")
     return friction, f"{path.resolve()}#{contact}" if contact in own else contact
@@ -324,10 +357,11 @@ def jar_names() -> list[str]:
 
 
 def load_jar(name: str, source="preset", base: Path | None = None) -> Jar:
+    files.check_path_text(name, source, "jar", "a jar name or jar file")
     path = resolve_jar_path(name, base)
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():
         raise ConfigError(source, "jar", name, f"no jar file {path}; known jars: {', '.join(jar_names())}")
-    t = _Table(_read_toml(path, "jar"), path)
+    t = _Table(_read_toml(path, "jar", source), path, known=JAR_KEYS)
     height = t.get("height_mm", lo=0, lo_open=True, hi=1000) * 1e-3
     wall = t.get("wall_material", kind=str)
     desc = t.get("description", "", kind=str)
@@ -338,8 +372,9 @@ def load_jar(name: str, source="preset", base: Path | None = None) -> Jar:
         raise ConfigError(path, "profile", raw, "must be a non-empty array of [[profile]] tables")
     prims = []
     for i, item in enumerate(raw):
-        p = _Table(item, path, f"profile[{i}].")
+        p = _Table(item, path, f"profile[{i}].", known={"type", *(k for keys in PRIMITIVES.values() for k in keys)})
         kind = p.get("type", kind=str, allowed=tuple(PRIMITIVES))
+        p.expect(("type", *PRIMITIVES[kind]))
         values = {}
         for key, (lo, hi) in PRIMITIVES[kind].items():
             v = p.get(key, lo=lo, lo_open=key.endswith("_mm"), hi=hi)
@@ -350,15 +385,34 @@ def load_jar(name: str, source="preset", base: Path | None = None) -> Jar:
     if sum(k == "circle" for k, _ in prims) != 1:
         raise ConfigError(path, "profile", [k for k, _ in prims], "needs exactly one circle primitive (the curved wall)")
     t.done()
+    _check_primitives(path, prims)
     load_material(wall, path)
     jar = Jar(path.stem, str(path), height, wall, tuple(prims), fillet, desc)
     try:
         jar.profile
-    except ValueError as err:
+    except (ValueError, ArithmeticError, IndexError) as err:
         raise ConfigError(path, "profile", [k for k, _ in prims], f"cannot build the cross-section: {err}") from None
     if len(jar.profile.pieces) > 1 and fillet <= 0:
         raise ConfigError(path, "fillet_mm", fillet * 1e3, "a profile with corners needs a fillet radius > 0")
     return jar
+
+
+def _check_primitives(path, prims):
+    """Every cut and lifter must shape the wall: a flat wall inside the circle, a lifter
+    reaching into it without covering the axis (the profile is star-shaped about it)."""
+    R = next(v["radius"] for k, v in prims if k == "circle")
+    for i, (kind, v) in enumerate(prims):
+        if kind == "cut" and v["distance"] >= R:
+            raise ConfigError(path, f"profile[{i}].distance_mm", v["distance"] * 1e3,
+                              f"allowed range (0, {R * 1e3:g}): a cut at or beyond the circle's radius "
+                              f"({R * 1e3:g} mm) lies outside the jar")
+        if kind == "lifter" and v["distance"] - v["radius"] >= R:
+            raise ConfigError(path, f"profile[{i}].distance_mm", v["distance"] * 1e3,
+                              f"allowed range (0, {(R + v['radius']) * 1e3:g}): the lifter's disc "
+                              f"(radius {v['radius'] * 1e3:g} mm) lies outside the circle ({R * 1e3:g} mm)")
+        if kind == "lifter" and v["distance"] <= v["radius"]:
+            raise ConfigError(path, f"profile[{i}].distance_mm", v["distance"] * 1e3,
+                              f"must exceed the lifter's radius_mm = {v['radius'] * 1e3:g}: its disc would cover the jar's axis")
 
 
 # ------------------------------------------------------------------ contact laws
@@ -382,10 +436,11 @@ def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source,
     tables, same keys and units, e.g. {"ball_wall": {"d_mm": 0.1}} (calibration fits);
     range errors then name the command line."""
     table, file, name = contact_table(contact)
+    _Table(table, file, f"contact.{name}.", known=CONTACT_KEYS)
     override = override or {}
     table = {**table, **{k: {**table.get(k, {}), **v} for k, v in override.items()}}
     changed = frozenset(f"contact.{name}.{k}.{leaf}" for k, v in override.items() for leaf in v)
-    t = _Table(table, file, f"contact.{name}.", changed)
+    t = _Table(table, file, f"contact.{name}.", changed, known=CONTACT_KEYS)
     ball_mat = t.get("ball", kind=str)
     wall_mat = t.get("wall", kind=str)
     t.get("ball_radius_mm", lo=0, lo_open=True, hi=1000)
@@ -401,8 +456,8 @@ def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source,
     k_bw = laws_np.hertz_stiffness(bm.youngs_modulus, bm.poisson, wm.youngs_modulus, wm.poisson, r)
     e_bb = 1.0 / (2.0 / bm.youngs_modulus)  # eq 2.17: 1/E_e = 1/E_i + 1/E_j
     e_bw = 1.0 / (1.0 / bm.youngs_modulus + 1.0 / wm.youngs_modulus)
-    bb = _normal_law(t.table("ball_ball"), law, k_bb, m / 2.0, e_bb, r / 2.0)
-    bw = _normal_law(t.table("ball_wall"), law, k_bw, m, e_bw, r)
+    bb = _normal_law(t.table("ball_ball", known=NORMAL_LAW_KEYS), law, k_bb, m / 2.0, e_bb, r / 2.0)
+    bw = _normal_law(t.table("ball_wall", known=NORMAL_LAW_KEYS), law, k_bw, m, e_bw, r)
     t.done()
     return bb, bw
 
@@ -415,7 +470,7 @@ def pair_contact(pair: str, radius: float | None = None, law: str | None = None,
     fitted for; `contact` overrides entries of the contact set (see `_contact_laws`)."""
     friction, contact_id = load_friction(pair, source, base=Path.cwd())
     db, file, name = contact_table(contact_id)
-    t = _Table(db, file, f"contact.{name}.")  # checked in full by _contact_laws
+    t = _Table(db, file, f"contact.{name}.", known=CONTACT_KEYS)  # checked in full by _contact_laws
     radius = radius or t.get("ball_radius_mm", lo=0, lo_open=True, hi=1000) * 1e-3
     ball = Balls(1, load_material(t.get("ball", kind=str), file), radius)
     jar = Jar("plate", "drop test", 10.0, t.get("wall", kind=str), (("circle", {"radius": 1.0}),))  # a 2 m wide plate
@@ -435,22 +490,30 @@ def max_impact_speed(plate_omega, jar_spin, plate_radius, jar: Jar, gravity=GRAV
 def load_preset(path, overrides: dict | None = None) -> Preset:
     """Read and validate a preset. `overrides` maps preset keys to values given on the
     command line (e.g. {"ratio": -3.0, "balls.count": 24}); they win over the file."""
+    overrides = overrides or {}
+    if overrides.get("ratio") is not None and overrides.get("jar_rpm") is not None:
+        raise ConfigError("command line", "--jar-rpm", overrides["jar_rpm"],
+                          f"give either --ratio ({overrides['ratio']!r}) or --jar-rpm, not both")
+    files.check_path_text(str(path) if isinstance(path, Path) else path, "command line", "preset", "a preset file")
     path = Path(path)
-    data = _read_toml(path, "preset")
+    data = _read_toml(path, "preset", "command line")
     source = str(path)
-    for key, value in (overrides or {}).items():
+    _Table(data, source, known=PRESET_KEYS)
+    for key, value in overrides.items():
         if value is None:
             continue
         table, _, leaf = key.rpartition(".")
         target = data.setdefault(table, {}) if table else data
+        if not isinstance(target, dict):
+            raise ConfigError(source, table, target, "must be a table")
         target[leaf] = value
         if key in ("ratio", "jar_rpm"):
             data.pop("jar_rpm" if key == "ratio" else "ratio", None)
-    overridden = frozenset(k for k, v in (overrides or {}).items() if v is not None)
-    t = _Table(data, source, "", overridden)
+    overridden = frozenset(k for k, v in overrides.items() if v is not None)
+    t = _Table(data, source, "", overridden, known=PRESET_KEYS)
 
     jar = load_jar(t.get("jar", kind=str), t.where("jar"), path.parent)
-    bt = t.table("balls")
+    bt = t.table("balls", known=BALLS_KEYS)
     material = load_material(bt.get("material", kind=str), source)
     balls = Balls(
         bt.get("count", kind=int, **RANGES["balls.count"].bounds),
@@ -465,7 +528,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     friction, contact = load_friction(pair, t.where("pair"), base=pair_base)
     if pair.endswith(".toml"):  # a pair file: its resolved path, valid from any directory
         pair = str((pair_base / pair).resolve())
-    ft = t.table("friction", required=False)
+    ft = t.table("friction", required=False, known=FRICTION_KEYS)
     if ft is not None:  # the pair's friction, tuned by the user
         friction = _friction(ft, f"{pair} (tuned)", friction)
         ft.done()
@@ -473,11 +536,15 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     ball_ball, ball_wall = _contact_laws(contact, law, balls, jar, source)
 
     plate_rpm = t.get("plate_rpm", **RANGES["plate_rpm"].bounds)
+    if plate_rpm == 0:
+        r = RANGES["plate_rpm"]
+        raise ConfigError(t.where("plate_rpm"), "plate_rpm", plate_rpm, f"allowed range [{r.lo:g}, 0) or (0, {r.hi:g}] {r.unit}: "
+                          "the speed ratio K = ω/Ω + 1 is undefined for a plate at rest")
     if t.has("ratio") and t.has("jar_rpm"):
         raise ConfigError(t.where("jar_rpm"), "jar_rpm", data["jar_rpm"], "give either ratio or jar_rpm, not both")
     jar_key = "jar_rpm" if t.has("jar_rpm") else "ratio"
     jar_speed = t.get(jar_key, **RANGES[jar_key].bounds)
-    plate_radius = t.get("plate_radius_mm", 125.0, lo=0, hi=2000) * 1e-3
+    plate_radius = t.get("plate_radius_mm", 125.0, lo=0, lo_open=True, hi=2000) * 1e-3
 
     duration = t.get("duration", lo=0, lo_open=True, hi=36000)
     if "duration" in overridden and "analysis_start" not in overridden and data.get("analysis_start", 0) >= duration:
@@ -502,8 +569,13 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
         if isinstance(dt_raw, bool) or not isinstance(dt_raw, (int, float)) or not 0 < dt_raw <= dt_limit:
             raise ConfigError(t.where("dt"), "dt", dt_raw, f"'auto' or a time step in (0, {dt_limit:.3g}] s (10 steps per contact at {v_max:.1f} m/s)")
         dt, is_auto = float(dt_raw), False
+        dt_min = min(dt_auto, duration / MAX_STEPS)
+        if dt < dt_min:
+            raise ConfigError(t.where("dt"), "dt", dt_raw, f"'auto' or a time step in [{dt_min:.3g}, {dt_limit:.3g}] s: "
+                              f"{duration / dt:.3g} steps for duration = {duration:g} s, at most {MAX_STEPS:.0e} "
+                              "(smaller than the automatic step only while it runs in reasonable time)")
 
-    out = t.table("outputs", required=False)
+    out = t.table("outputs", required=False, known=OUTPUTS_KEYS)
     rate = 100.0
     if out is not None:
         rate = out.get("trajectory_rate", 100.0, lo=0, lo_open=True, hi=min(1e5, 0.5 / dt))
@@ -534,13 +606,23 @@ def _check_fill(balls: Balls, jar: Jar, source, radius_source):
 
 def load_positions(name: str, base: Path, balls: Balls, jar: Jar, source) -> np.ndarray:
     """Ball centres (N, 3), m, jar frame, from CSV (x,y,z per line) or NPZ (array 'positions')."""
+    files.check_path_text(name, source, "initial_positions")
     p = Path(name) if Path(name).is_absolute() else base / name
+    data = files.read_bytes(p, source, "initial_positions")
     try:
-        x = np.load(p)["positions"] if p.suffix == ".npz" else np.loadtxt(p, delimiter=",", ndmin=2)
-    except (OSError, KeyError, ValueError) as err:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # an empty file: loadtxt warns, the shape check below reports it
+            if p.suffix == ".npz":
+                x = np.load(io.BytesIO(data), allow_pickle=False)["positions"]
+            else:
+                x = np.loadtxt(io.StringIO(data.decode("utf-8-sig")), delimiter=",", ndmin=2)
+            x = np.asarray(x, dtype=float)
+    except (OSError, KeyError, ValueError, TypeError, EOFError) as err:
         raise ConfigError(source, "initial_positions", name, f"cannot read ({err})") from None
     if x.shape != (balls.count, 3):
         raise ConfigError(source, "initial_positions", name, f"shape {x.shape}; need ({balls.count}, 3) ball centres in m")
+    if not np.isfinite(x).all():
+        raise ConfigError(source, "initial_positions", name, "every coordinate must be a finite number (m)")
     r = balls.radius
     phi, _ = geometry.profile_sdf(jar.profile, x[:, :2])
     if (phi < r).any() or (x[:, 2] < r).any() or (x[:, 2] > jar.height - r).any():

@@ -1,20 +1,35 @@
 """`taimill` command line: one module per subcommand, each with a `register`
 function; shared helpers in `common.py`. Heavy imports (taichi, zarr) happen inside
-the commands so `taimill --help` stays fast. Bad input: one line on stderr, exit code 2."""
+the commands so `taimill --help` stays fast.
+
+Bad input (docs/outputs.md, errors): one line on stderr, `taimill: error: ` then the
+file (or "command line"), the key or option, the value and what is allowed; exit code
+2; checked before anything runs or is written. argparse's own errors are one line too
+(common.Parser)."""
 
 from __future__ import annotations
 
-import argparse
 import sys
 
 from taimill.cli import calibrate, catalog, compare, liggghts, record, report, run, sweep, tui
-from taimill.cli.common import EXIT_BAD_INPUT
+from taimill.cli.common import EXIT_BAD_INPUT, Parser
 
 SUBCOMMANDS = (run, calibrate, catalog, sweep, report, record, tui, liggghts, compare)
 
 
-def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="taimill", description="Planetary ball mill simulator (Taichi DEM in the jar frame).")
+def version() -> str:
+    """The installed package's version."""
+    from importlib.metadata import PackageNotFoundError, version as _version
+
+    try:
+        return _version("taimill")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+def parser() -> Parser:
+    p = Parser(prog="taimill", description="Planetary ball mill simulator (Taichi DEM in the jar frame).")
+    p.add_argument("--version", action="version", version=f"taimill {version()}")
     sub = p.add_subparsers(dest="command", required=True)
     for module in SUBCOMMANDS:
         module.register(sub)
@@ -24,7 +39,10 @@ def parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     from taimill.errors import ConfigError
 
-    a = parser().parse_args(argv)
+    try:
+        a = parser().parse_args(argv)
+    except SystemExit as done:  # --help, --version (0) or a one-line usage error (2)
+        return done.code if isinstance(done.code, int) else EXIT_BAD_INPUT
     try:
         return a.fn(a)
     except ConfigError as err:

@@ -13,11 +13,20 @@ from pathlib import Path
 
 import numpy as np
 
-from taimill.cli.common import LAW_HELP, plain as _plain  # JSON-safe values, one definition
+from taimill.cli.common import LAW_HELP, name_text, number, path_text, plain as _plain  # JSON-safe values, one definition
 
 EXIT_NO_MATCH = 1
 MAX_H0_MM = 10_000.0
+MAX_OFFSETS = 1000  #: oblique impacts of one call
+FIGURE_SUFFIXES = (".png", ".svg")
 
+
+def _check_figure(a) -> None:
+    """--figure: checked before anything runs (suffix, folder, an existing file)."""
+    if a.figure:
+        from taimill.model.files import check_output
+
+        check_output(a.figure, "--figure", overwrite=a.overwrite, suffixes=FIGURE_SUFFIXES)
 
 
 def _emit(a, value, text, figure=None):
@@ -44,6 +53,7 @@ def cmd_drop(a) -> int:
     if a.radius_mm is not None:
         _check(a.radius_mm, "--radius-mm", 0, 100, "mm")
     pair_contact(a.pair, law=a.law)  # bad input is reported before taichi starts
+    _check_figure(a)
     from taimill.calibration.runs import drop_tests
 
     rs = drop_tests(a.pair, [h * 1e-3 for h in heights], target=a.target, law=a.law,
@@ -75,12 +85,17 @@ def cmd_fit(a) -> int:
     from taimill.calibration.pairfile import write_pair_file
     from taimill.errors import ConfigError
 
+    from taimill.model.files import check_output
+    from taimill.model.params import pair_contact
+
     _check(a.scatter, "--scatter", 0, 1, "(1 s.d. of e)")
-    if a.out and Path(a.out).exists() and not a.overwrite:
-        raise ConfigError("command line", "--out", a.out, "exists; pass --overwrite to replace it")
     if a.out and not a.out.endswith(".toml"):
         raise ConfigError("command line", "--out", a.out, "a pair file must end in .toml")
+    if a.out:
+        check_output(a.out, "--out", overwrite=a.overwrite)
+    _check_figure(a)
     data = load_drop_data(a.data)
+    pair_contact(a.pair, law=a.law)  # bad input is reported before taichi starts
     try:
         fit = fit_drops(a.pair, data, param=a.param, law=a.law, scatter=a.scatter)
     except FitError as err:
@@ -118,8 +133,12 @@ def cmd_sensitivity(a) -> int:
     from taimill.figures.calibration import sensitivity_figure
     from taimill.calibration.impacts import sensitivity
 
+    from taimill.model.params import pair_contact
+
     h0 = _check(a.h0, "--h0", 0, MAX_H0_MM, "mm (drop height)")
     change = _check(a.change, "--change", 0, 99, "% (kept below 100: parameters stay positive)") / 100.0
+    pair_contact(a.pair, law=a.law)  # bad input is reported before taichi starts
+    _check_figure(a)
     s = sensitivity(a.pair, h0 * 1e-3, law=a.law, target=a.target, change=change)
     ref = s["rows"][0]
     lines = [f"{s['pair']} ({s['law']}), drop on the {s['target']} from h0 = {h0:g} mm: reference e = {ref['e']:.4f}, "
@@ -141,12 +160,18 @@ def _offsets(text: str) -> list[float]:
     try:
         if ":" in text:
             lo, hi, step = (float(x) for x in text.split(":"))
-            if step <= 0:
+            if not (step > 0 and math.isfinite(lo) and math.isfinite(hi) and math.isfinite(step)):
                 raise ValueError
-            return [round(float(x), 9) for x in np.arange(lo, hi + 0.5 * step, step)]
-        return [float(x) for x in text.split(",")]
+            if (hi - lo) / step + 1 > MAX_OFFSETS:
+                raise ConfigError("command line", "--offsets", text, f"{(hi - lo) / step + 1:.3g} offsets; at most {MAX_OFFSETS}")
+            values = [round(float(x), 9) for x in np.arange(lo, hi + 0.5 * step, step)]
+        else:
+            values = [float(x) for x in text.split(",")]
     except ValueError:
         raise ConfigError("command line", "--offsets", text, "A:B:STEP or a comma list, in mm (STEP > 0)") from None
+    if not values or len(values) > MAX_OFFSETS:
+        raise ConfigError("command line", "--offsets", text, f"1 to {MAX_OFFSETS} offsets")
+    return values
 
 
 def cmd_oblique(a) -> int:
@@ -158,6 +183,7 @@ def cmd_oblique(a) -> int:
     grazing = 2e3 * ball.radius
     offsets = [_check(o, "--offsets", 0, grazing, f"mm ({grazing:g} mm = 2r: grazing)", lo_open=False) for o in _offsets(a.offsets)]
     speed = _check(a.speed, "--speed", 0, 100_000, "mm/s")
+    _check_figure(a)
     o = oblique(a.pair, [x * 1e-3 for x in offsets], speed * 1e-3, law=a.law, friction=a.friction)
     lines = [f"{o['pair']} ({o['law']}), two spheres at {speed:g} mm/s, {'with' if o['friction'] else 'no'} friction; "
              f"velocities of sphere 0 relative to 1 on the apse line, mm/s, approach > 0",
@@ -176,39 +202,39 @@ def register(sub):
     c = sub.add_parser("calibrate", help="contact-parameter calibration and validation: drop, fit, sensitivity, oblique")
     csub = c.add_subparsers(dest="experiment", required=True)
 
-    def common(p, figure_help):
-        p.add_argument("--pair", required=True, help="friction/contact pair, e.g. steel-steel, or a pair file NAME.toml")
+    def common(p, figure_help, overwrite_help="replace an existing --figure file"):
+        p.add_argument("--pair", required=True, type=name_text, help="friction/contact pair, e.g. steel-steel, or a pair file NAME.toml")
         p.add_argument("--law", help=f"{LAW_HELP}; default: the pair's")
         p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
-        p.add_argument("--figure", metavar="FILE", help=f"draw {figure_help} (.png or .svg)")
+        p.add_argument("--figure", metavar="FILE", type=path_text, help=f"draw {figure_help} (.png or .svg)")
+        p.add_argument("--overwrite", action="store_true", help=overwrite_help)
 
     d = csub.add_parser("drop", help="drop tests: restitution and rebound height for one or more heights")
     common(d, "e and h* against h0")
-    d.add_argument("--h0", type=float, nargs="+", required=True, metavar="MM", help="drop height(s) (mm)")
+    d.add_argument("--h0", type=number, nargs="+", required=True, metavar="MM", help="drop height(s) (mm)")
     d.add_argument("--target", choices=("plate", "ball"), default="plate")
-    d.add_argument("--radius-mm", type=float, help="ball radius (default: the pair's fitted balls)")
+    d.add_argument("--radius-mm", type=number, help="ball radius (default: the pair's fitted balls)")
     d.set_defaults(fn=cmd_drop)
 
     f = csub.add_parser("fit", help="fit d (or c_max; e for other laws) to measured drop tests, write a pair file")
-    common(f, "measured and fitted e(h0) and the residuals")
-    f.add_argument("--data", required=True, help="CSV with h0_mm and rebound_mm or e (taimill/data/zirconia_drop_table2_1.csv)")
+    common(f, "measured and fitted e(h0) and the residuals", "replace an existing --out or --figure file")
+    f.add_argument("--data", required=True, type=path_text, help="CSV with h0_mm and rebound_mm or e (taimill/data/zirconia_drop_table2_1.csv)")
     f.add_argument("--param", choices=("d", "c_max", "e"), help="fitted parameter (default: e for laws whose damping comes from e, d otherwise)")
-    f.add_argument("--scatter", type=float, default=0.02, help="1 s.d. of a measured e where the data give none (default 0.02)")
-    f.add_argument("--out", help="pair file to write (NAME.toml), usable as pair = \"NAME.toml\" in presets")
-    f.add_argument("--name", help="pair name inside the file (default PAIR-fit)")
-    f.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+    f.add_argument("--scatter", type=number, default=0.02, help="1 s.d. of a measured e where the data give none (default 0.02)")
+    f.add_argument("--out", type=path_text, help="pair file to write (NAME.toml), usable as pair = \"NAME.toml\" in presets")
+    f.add_argument("--name", type=name_text, help="pair name inside the file (default PAIR-fit)")
     f.set_defaults(fn=cmd_fit)
 
     s = csub.add_parser("sensitivity", help="thesis Fig 2.5: change each contact parameter by ±50 %%, rebound height")
     common(s, "the change of rebound height per parameter")
-    s.add_argument("--h0", type=float, default=500.0, help="drop height (mm, default 500 as in the thesis)")
+    s.add_argument("--h0", type=number, default=500.0, help="drop height (mm, default 500 as in the thesis)")
     s.add_argument("--target", choices=("plate", "ball"), default="plate")
-    s.add_argument("--change", type=float, default=50.0, help="relative change of each parameter (%%, default 50)")
+    s.add_argument("--change", type=number, default=50.0, help="relative change of each parameter (%%, default 50)")
     s.set_defaults(fn=cmd_sensitivity)
 
     o = csub.add_parser("oblique", help="thesis Fig 2.8: two spheres with offsets, simulated vs eqs 2.3/2.4")
     common(o, "final normal and tangential relative velocities against the offset")
-    o.add_argument("--speed", type=float, default=3300.0, help="relative speed (mm/s, default 3300)")
+    o.add_argument("--speed", type=number, default=3300.0, help="relative speed (mm/s, default 3300)")
     o.add_argument("--offsets", default="0:12:1", help="centre offsets Δ in mm, A:B:STEP or A,B,C (default 0:12:1)")
     o.add_argument("--friction", action="store_true", help="use the pair's friction (default frictionless, as Fig 2.8)")
     o.set_defaults(fn=cmd_oblique)

@@ -9,15 +9,21 @@ import textwrap
 from pathlib import Path
 
 
+FIGURE_SUFFIXES = (".png", ".svg")
+
+
 def register(sub) -> None:
+    from taimill.cli.common import name_text, path_text
+
     sub.add_parser("presets", help="list presets").set_defaults(fn=cmd_presets)
     j = sub.add_parser("jars", help="list jars (area, volume, pieces); 'jars show NAME' draws one")
     j.add_argument("--json", action="store_true", help="print the table as a JSON list")
     j.set_defaults(fn=cmd_jars)
     jsub = j.add_subparsers(dest="jar_command")
     js = jsub.add_parser("show", help="draw a jar's outline and signed-distance field")
-    js.add_argument("name", help="jar name (jars/NAME.toml) or path to a jar TOML")
-    js.add_argument("--out", help="image to write, .png or .svg (default jar-NAME.png)")
+    js.add_argument("name", type=name_text, help="jar name (jars/NAME.toml) or path to a jar TOML")
+    js.add_argument("--out", type=path_text, help="image to write, .png or .svg (default jar-NAME.png)")
+    js.add_argument("--overwrite", action="store_true", help="replace an existing --out image")
 
 
 def first_sentence(path) -> str:
@@ -40,7 +46,11 @@ def cmd_presets(a) -> int:
     w = max(map(len, names), default=0) + 2
     width = max(shutil.get_terminal_size().columns, w + 40)
     for name, p in zip(names, paths):  # wrapped, never cut: the name, then the first sentence
-        print(textwrap.fill(first_sentence(p), width, initial_indent=name.ljust(w), subsequent_indent=" " * w,
+        try:
+            first = first_sentence(p)
+        except (OSError, UnicodeDecodeError) as err:  # a folder or unreadable file named *.toml
+            first = f"(cannot read: {getattr(err, 'strerror', None) or err})"
+        print(textwrap.fill(first, width, initial_indent=name.ljust(w), subsequent_indent=" " * w,
                             break_long_words=False, break_on_hyphens=False))
     return 0
 
@@ -50,8 +60,11 @@ def cmd_jars(a) -> int:
     from taimill.model.params import jar_names, load_jar
 
     if getattr(a, "jar_command", None) == "show":
+        from taimill.model.files import check_output
+
         jar = load_jar(a.name, "command line")
-        print(draw_jar(jar, a.out or f"jar-{jar.name}.png"))
+        out = check_output(a.out or f"jar-{jar.name}.png", "--out", overwrite=a.overwrite, suffixes=FIGURE_SUFFIXES)
+        print(draw_jar(jar, out))
         return 0
     names = jar_names()
     cy = load_jar("CY").volume if "CY" in names else None

@@ -1,15 +1,66 @@
-"""What the subcommands share: exit codes, the preset overrides every simulating
-command takes, JSON-safe values and the printed summary table."""
+"""What the subcommands share: exit codes, the argument parser whose errors are one
+line, argument types that refuse what no command can use (NaN, infinities, empty
+paths), the preset overrides every simulating command takes, JSON-safe values and
+the printed summary table."""
 
 from __future__ import annotations
 
+import argparse
 import math
+import sys
 
+from taimill.errors import one_line
 from taimill.model.laws import NAMES
 from taimill.schema import SUMMARY_ROWS
 
 EXIT_BAD_INPUT, EXIT_UNSTABLE = 2, 3
 LAW_HELP = f"normal contact law ({', '.join(NAMES)})"
+LIVE_IGNORED = ("duration", "analysis_start")  #: overrides a live mill has no use for (it runs until quit)
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with its errors as one line on stderr, like every other bad input:
+    `taimill: error: command line: WHAT (see `taimill CMD --help`)`, exit code 2. The
+    usage block argparse prints first is left out; --help shows it."""
+
+    def error(self, message):
+        print(f"taimill: error: command line: {one_line(message)} (see `{self.prog} --help`)", file=sys.stderr)
+        self.exit(EXIT_BAD_INPUT)
+
+
+def number(text: str) -> float:
+    """A finite number (argparse type): "nan", "inf" and "1e999" are refused."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r}: a finite number is needed")
+    return value
+
+
+def integer(text: str) -> int:
+    """An integer (argparse type)."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+
+
+def path_text(text: str) -> str:
+    """A file or folder name (argparse type): not empty or blank, no NUL character."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r}: a path is needed, not an empty string")
+    if "\0" in text:
+        raise argparse.ArgumentTypeError(f"{text!r}: a path cannot contain NUL characters")
+    return text
+
+
+def name_text(text: str) -> str:
+    """A name (argparse type): not empty or blank."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r}: a name is needed, not an empty string")
+    return text
 
 
 def dt_option(text: str | None):
@@ -24,25 +75,31 @@ def dt_option(text: str | None):
 
 
 def overrides(a) -> dict:
+    """The preset overrides of parsed arguments (None: not given); those a command does
+    not take (the live mill's LIVE_IGNORED) are left out."""
     dt = dt_option(a.dt)
-    return {
+    given = {
         "ratio": a.ratio, "jar_rpm": a.jar_rpm, "plate_rpm": a.plate_rpm, "pair": a.pair,
-        "jar": a.jar, "balls.count": a.balls, "seed": a.seed, "duration": a.duration, "dt": dt,
-        "law": a.law, "analysis_start": a.analysis_start,
+        "jar": a.jar, "balls.count": a.balls, "seed": a.seed, "duration": getattr(a, "duration", None), "dt": dt,
+        "law": a.law, "analysis_start": getattr(a, "analysis_start", None),
     }
+    return {k: v for k, v in given.items() if k not in LIVE_IGNORED or hasattr(a, k)}
 
 
-def add_overrides(p):
+def add_overrides(p, live: bool = False):
+    """The preset overrides; `live`: without those a live mill ignores (LIVE_IGNORED)."""
     g = p.add_argument_group("preset overrides")
-    g.add_argument("--ratio", type=float, help="K = ω/Ω + 1 (jar spin / plate spin)")
-    g.add_argument("--jar-rpm", type=float, help="ω, jar speed relative to the plate (rpm)")
-    g.add_argument("--plate-rpm", type=float, help="Ω (rpm)")
-    g.add_argument("--pair", help="friction pair, e.g. steel-fluorite")
-    g.add_argument("--jar", help="jar name (jars/NAME.toml) or path")
-    g.add_argument("--balls", type=int, help="number of balls")
-    g.add_argument("--seed", type=int)
-    g.add_argument("--duration", type=float, help="simulated seconds (a preset's analysis start that no longer fits becomes duration/6)")
-    g.add_argument("--analysis-start", type=float, help="start of the analysis window (s)")
+    g.add_argument("--ratio", type=number, help="K = ω/Ω + 1 (jar spin / plate spin); or give --jar-rpm, not both")
+    g.add_argument("--jar-rpm", type=number, help="ω, jar speed relative to the plate (rpm)")
+    g.add_argument("--plate-rpm", type=number, help="Ω (rpm, not 0)")
+    g.add_argument("--pair", type=name_text, help="friction pair, e.g. steel-fluorite, or a pair file NAME.toml")
+    g.add_argument("--jar", type=name_text, help="jar name (jars/NAME.toml) or path")
+    g.add_argument("--balls", type=integer, help="number of balls")
+    g.add_argument("--seed", type=integer, help="seed of the random ball placement (integer ≥ 0; default: the preset's, else 0)")
+    if not live:
+        g.add_argument("--duration", type=number,
+                       help="simulated seconds (a preset's analysis start that no longer fits becomes duration/6)")
+        g.add_argument("--analysis-start", type=number, help="start of the analysis window (s)")
     g.add_argument("--dt", help="time step in s, or 'auto'")
     g.add_argument("--law", help=LAW_HELP)
 

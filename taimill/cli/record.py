@@ -18,22 +18,26 @@ EXIT_NO_DISPLAY = 4
 REPLAY_SECONDS = 0.05  # simulated seconds per replayed block, as a live launch
 
 
-def _existing(path: str, key: str) -> Path:
+def _existing(path: str, key: str, folder: bool) -> Path:
+    """An existing store folder (folder=True) or file (a recording)."""
     from taimill.errors import ConfigError
 
     p = Path(path)
     if not p.exists():
         raise ConfigError("command line", key, path, "no such file or directory")
+    if folder and not p.is_dir():
+        raise ConfigError("command line", key, path, "is a file; need a run store folder (RUN.zarr)")
+    if not folder and not p.is_file():
+        raise ConfigError("command line", key, path, "not a regular file; need a recording file (RUN.rrd)")
     return p
 
 
 def check_output(path: str, overwrite: bool) -> None:
-    from taimill.errors import ConfigError
+    """--rrd: a file name ending in .rrd in an existing writable folder; an existing
+    file only with --overwrite."""
+    from taimill.model.files import check_output as _check_output
 
-    if not path.endswith(".rrd"):
-        raise ConfigError("command line", "--rrd", path, "a recording file name ending in .rrd")
-    if Path(path).exists() and not overwrite:
-        raise ConfigError("command line", "--rrd", path, "exists; pass --overwrite to replace it")
+    _check_output(path, "--rrd", overwrite=overwrite, suffixes=(".rrd",))
 
 
 def replay(store, sink) -> None:
@@ -66,7 +70,7 @@ def cmd_record(a) -> int:
     from taimill.store.run import open_run
 
     check_output(a.rrd, a.overwrite)
-    source = _existing(a.run, "RUN.zarr")
+    source = _existing(a.run, "RUN.zarr", folder=True)
     try:
         store = open_run(source)
     except Exception as err:  # zarr raises several kinds for a directory that is no store
@@ -91,7 +95,7 @@ def has_display() -> bool:
 
 
 def cmd_view(a) -> int:
-    path = _existing(a.rrd, "RUN.rrd")
+    path = _existing(a.rrd, "RUN.rrd", folder=False)
     binary = viewer_binary()
     if binary is None:
         print("taimill: the rerun viewer is not installed (pip install rerun-sdk)", file=sys.stderr)
@@ -107,27 +111,30 @@ def cmd_view(a) -> int:
 
 
 def register(sub) -> None:
+    from taimill.cli.common import path_text
+
     r = sub.add_parser("record", help="convert a stored run (RUN.zarr) into a rerun recording (.rrd)")
-    r.add_argument("run", metavar="RUN.zarr", help="run store written by `taimill run --out`")
-    r.add_argument("--rrd", required=True, metavar="RUN.rrd", help="recording to write")
+    r.add_argument("run", metavar="RUN.zarr", type=path_text, help="run store written by `taimill run --out`")
+    r.add_argument("--rrd", required=True, metavar="RUN.rrd", type=path_text, help="recording to write")
     r.add_argument("--overwrite", action="store_true", help="replace an existing --rrd file")
     r.add_argument("--lab-frame", action="store_true", help="also record the jar moving on the plate")
     r.add_argument("--histogram-every", type=_positive, default=1.0, metavar="S",
                    help="period of the onset-speed histograms (simulated s, default 1)")
     r.set_defaults(fn=cmd_record)
     v = sub.add_parser("view", help="open a recording in the rerun viewer")
-    v.add_argument("rrd", metavar="RUN.rrd")
+    v.add_argument("rrd", metavar="RUN.rrd", type=path_text)
     v.add_argument("--web", action="store_true", help="serve the web viewer instead of opening a window (headless machines)")
     v.set_defaults(fn=cmd_view)
 
 
 def _positive(text: str) -> float:
     import argparse
+    import math
 
     try:
         value = float(text)
     except ValueError:
         value = float("nan")
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: a number of seconds > 0")
+    if not (value > 0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"{text!r}: a finite number of seconds > 0")
     return value

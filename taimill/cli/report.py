@@ -7,16 +7,21 @@ import json
 import math
 from pathlib import Path
 
+from taimill.cli.common import number, path_text
 from taimill.model.mechanisms import STRESS_MIN_UN
 
 
+MAX_MIN_UN_MM_S = 1e6  #: --min-un above 1 km/s would count nothing
+MAX_SAMPLING_RATE = 1e5  #: /s, the highest trajectory rate a preset may store
+
+
 def _add_analysis_options(p):
-    p.add_argument("run", help="run store written by `taimill run --out` (RUN.zarr)")
-    p.add_argument("--analysis-start", type=float, help="start of the analysis window (s; default: the run's)")
-    p.add_argument("--min-un", type=float, default=STRESS_MIN_UN * 1e3,
+    p.add_argument("run", type=path_text, help="run store written by `taimill run --out` (RUN.zarr)")
+    p.add_argument("--analysis-start", type=number, help="start of the analysis window (s; default: the run's)")
+    p.add_argument("--min-un", type=number, default=STRESS_MIN_UN * 1e3,
                    help=f"stress events: events with at least this onset normal speed (mm/s, default "
                         f"{STRESS_MIN_UN * 1e3:g}); 0 counts every contact (the all-contacts column always does)")
-    p.add_argument("--sampling-rate", type=float, default=100.0,
+    p.add_argument("--sampling-rate", type=number, default=100.0,
                    help="sampled (thesis §3.3, MSC.Adams-like) estimator: output samples per second (default 100)")
 
 
@@ -27,19 +32,40 @@ def register(sub):
     a.set_defaults(fn=cmd_analyse)
     r = sub.add_parser("report", help="figures of a stored run (or of a sweep store)")
     _add_analysis_options(r)
-    r.add_argument("--out", help="directory for the figures (default: RUN-report next to the store)")
+    r.add_argument("--out", type=path_text, help="folder for the figures, created if needed (default: RUN-report next to the store)")
+    r.add_argument("--overwrite", action="store_true", help="replace figures already in the --out folder")
     r.add_argument("--format", choices=("png", "svg", "pdf"), default="png")
-    r.add_argument("--overlay", help="sweep stores only: measured series CSV drawn against K")
+    r.add_argument("--overlay", type=path_text, help="sweep stores only: measured series CSV drawn against K")
     r.set_defaults(fn=cmd_report)
+
+
+def _check_options(a):
+    """The analysis options, before the store is opened."""
+    from taimill.errors import ConfigError
+
+    if a.analysis_start is not None and a.analysis_start < 0:
+        raise ConfigError("command line", "--analysis-start", a.analysis_start, "allowed range [0, the run's end) s")
+    if not 0 <= a.min_un <= MAX_MIN_UN_MM_S:
+        raise ConfigError("command line", "--min-un", a.min_un, f"allowed range [0, {MAX_MIN_UN_MM_S:g}] mm/s")
+    if not 0 < a.sampling_rate <= MAX_SAMPLING_RATE:
+        raise ConfigError("command line", "--sampling-rate", a.sampling_rate, f"allowed range (0, {MAX_SAMPLING_RATE:g}] /s")
 
 
 def _open(a):
     from taimill.analysis.run import analyse
     from taimill.errors import ConfigError
+    from taimill.store.run import open_run
 
+    _check_options(a)
     if not Path(a.run).is_dir():
         raise ConfigError("command line", "RUN", a.run, "an existing run store directory (RUN.zarr)")
-    return analyse(a.run, analysis_start=a.analysis_start, min_un=a.min_un * 1e-3, sampling_rate=a.sampling_rate)
+    try:
+        store = open_run(a.run)
+        if not store.config:
+            raise ValueError("no config attribute")
+    except Exception as err:  # zarr raises several kinds for a folder that is no store
+        raise ConfigError("command line", "RUN", a.run, f"not a taimill run store ({type(err).__name__}: {err})") from None
+    return analyse(store, analysis_start=a.analysis_start, min_un=a.min_un * 1e-3, sampling_rate=a.sampling_rate)
 
 
 def cmd_analyse(a) -> int:
@@ -54,22 +80,44 @@ def cmd_analyse(a) -> int:
 
 
 def cmd_report(a) -> int:
-    out = Path(a.out) if a.out else Path(str(Path(a.run)).rstrip("/").removesuffix(".zarr") + "-report")
-    if _is_sweep(a.run):
-        from taimill.figures.sweep import report_sweep
+    from taimill.errors import ConfigError
+    from taimill.model.files import check_output
 
+    _check_options(a)
+    out = a.out or str(Path(a.run)).rstrip("/").removesuffix(".zarr") + "-report"
+    out = check_output(out, "--out", overwrite=None, folder=True)
+    if _is_sweep(a.run):
+        from taimill.figures.sweep import FIGURES, read_overlay, report_sweep
+
+        stems = [f[0] for f in FIGURES] + ["regimes"] + (["overlay"] if a.overlay else [])
+        _refuse_existing(out, stems, a)
+        if a.overlay:
+            read_overlay(a.overlay)  # its errors before any figure is drawn
         paths = report_sweep(a.run, out, a.format, overlay=a.overlay)
     else:
-        from taimill.figures.report import write_report
+        from taimill.figures.report import FIGURES, write_report
 
         if a.overlay:
-            from taimill.errors import ConfigError
-
             raise ConfigError("command line", "--overlay", a.overlay, "only for sweep stores (taimill sweep --out)")
-        paths = write_report(_open(a), out, a.format)
+        analysis = _open(a)
+        _refuse_existing(out, list(FIGURES), a)
+        paths = write_report(analysis, out, a.format)
     for p in paths:
         print(p)
     return 0
+
+
+def _refuse_existing(out: Path, stems, a) -> None:
+    """No figure already in `out` is replaced without --overwrite."""
+    from taimill.errors import ConfigError
+
+    there = [out / f"{s}.{a.format}" for s in stems if (out / f"{s}.{a.format}").exists()]
+    if there and not a.overwrite:
+        raise ConfigError("command line", "--out", str(out), f"already holds {there[0].name} (and {len(there) - 1} more "
+                          "figure(s) of this report); pass --overwrite to replace them")
+    for p in there:
+        if p.is_dir():
+            raise ConfigError("command line", "--out", str(out), f"{p.name} is a folder; a figure would go there")
 
 
 def _is_sweep(path) -> bool:

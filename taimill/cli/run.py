@@ -6,15 +6,15 @@ import json
 import sys
 from pathlib import Path
 
-from taimill.cli.common import EXIT_UNSTABLE, add_overrides, overrides, plain, stderr_console, summary_table
+from taimill.cli.common import EXIT_UNSTABLE, add_overrides, overrides, path_text, plain, stderr_console, summary_table
 
 
 def register(sub) -> None:
     r = sub.add_parser("run", help="simulate a preset, summarise, store")
-    r.add_argument("preset", help="preset TOML file, e.g. presets/p4-cy-steel.toml")
-    r.add_argument("--out", help="zarr store to write (RUN.zarr)")
+    r.add_argument("preset", type=path_text, help="preset TOML file, e.g. presets/p4-cy-steel.toml")
+    r.add_argument("--out", type=path_text, help="zarr store to write (RUN.zarr)")
     r.add_argument("--overwrite", action="store_true", help="replace an existing --out store or --rrd file")
-    r.add_argument("--rrd", help="rerun recording to write (RUN.rrd); open it with `taimill view RUN.rrd`")
+    r.add_argument("--rrd", type=path_text, help="rerun recording to write (RUN.rrd); open it with `taimill view RUN.rrd`")
     r.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
     add_overrides(r)
     r.set_defaults(fn=cmd_run)
@@ -25,6 +25,10 @@ def cmd_run(a) -> int:
     from taimill.model.params import load_preset
 
     preset = load_preset(a.preset, overrides(a))
+    if a.out:  # its folder must exist and be writable (an existing store: see --overwrite below)
+        from taimill.model.files import check_output
+
+        check_output(a.out, "--out", overwrite=None)
     if a.out and Path(a.out).exists() and not a.overwrite:
         from taimill.errors import ConfigError
 

@@ -10,7 +10,7 @@ import math
 import re
 import sys
 
-from taimill.cli.common import LAW_HELP
+from taimill.cli.common import LAW_HELP, integer, name_text, number, path_text
 from taimill.errors import ConfigError
 
 REFINE_METRICS = ("mean_se", "mean_se_normal", "mean_se_tangential", "impact_power", "impact_power_normal",
@@ -30,29 +30,29 @@ def register(subparsers) -> None:
     # K is mostly negative: let "--ratio -2:-4:0.2" and "--ratio -1,-2" through as values
     # (argparse only lets plain negative numbers through; the form --ratio=… always works)
     s._negative_number_matcher = re.compile(r"^-\d*\.?\d+(?:[:,][-+\d.:,eE]*)?$")
-    s.add_argument("preset", help="preset TOML file, e.g. presets/p4-cy-steel.toml")
+    s.add_argument("preset", type=path_text, help="preset TOML file, e.g. presets/p4-cy-steel.toml")
     g = s.add_argument_group("swept values: A:B:STEP (inclusive; e.g. 0:-4:0.2), v1,v2,… or one value")
     g.add_argument("--ratio", help="K = ω/Ω + 1 values")
     g.add_argument("--plate-rpm", help="Ω values (rpm)")
     g.add_argument("--pair", help="friction pairs, e.g. steel-steel,steel-fluorite")
     g.add_argument("--balls", help="ball counts, e.g. 6,12,24")
     g.add_argument("--jar", help="jars, e.g. CY,HM")
-    g.add_argument("--replicas", type=int, default=1, help="R seeds per point (seed … seed+R-1): mean ± 95%% band")
+    g.add_argument("--replicas", type=integer, default=1, help="R seeds per point (seed … seed+R-1): mean ± 95%% band")
     g.add_argument("--refine", action="store_true", help="add points around the maximum of --refine-metric")
     g.add_argument("--refine-metric", default="mean_se", choices=REFINE_METRICS, metavar="KEY",
                    help=f"summary figure to maximise: {', '.join(REFINE_METRICS)} (default mean_se)")
-    g.add_argument("--refine-rounds", type=int, default=2, help="refinement rounds, each halving the spacing (default 2)")
+    g.add_argument("--refine-rounds", type=integer, default=2, help="refinement rounds, each halving the spacing (default 2)")
     o = s.add_argument_group("run overrides (every point)")
-    o.add_argument("--seed", type=int, help="seed of the first replica")
-    o.add_argument("--duration", type=float, help="simulated seconds per point")
-    o.add_argument("--analysis-start", type=float, help="start of the analysis window (s)")
+    o.add_argument("--seed", type=integer, help="seed of the random ball placement of the first replica (integer ≥ 0)")
+    o.add_argument("--duration", type=number, help="simulated seconds per point")
+    o.add_argument("--analysis-start", type=number, help="start of the analysis window (s)")
     o.add_argument("--dt", help="time step in s, or 'auto' (per point)")
     o.add_argument("--law", help=LAW_HELP)
     x = s.add_argument_group("execution")
-    x.add_argument("--workers", type=int, help="local worker processes (default: one per core)")
-    x.add_argument("--batch", type=int, help="mills per kernel, B (default: 1 for small sweeps, see sweep.auto_batch)")
-    x.add_argument("--scheduler", metavar="ADDRESS", help="dask.distributed scheduler, e.g. tcp://host:8786")
-    s.add_argument("--out", help="sweep store to write (SWEEP.zarr); the same command resumes it")
+    x.add_argument("--workers", type=integer, help="local worker processes (default: one per core)")
+    x.add_argument("--batch", type=integer, help="mills per kernel, B (default: 1 for small sweeps, see sweep.auto_batch)")
+    x.add_argument("--scheduler", metavar="ADDRESS", type=name_text, help="dask.distributed scheduler, e.g. tcp://host:8786")
+    s.add_argument("--out", type=path_text, help="sweep store to write (SWEEP.zarr); the same command resumes it")
     s.add_argument("--overwrite", action="store_true", help="replace an existing --out store")
     s.add_argument("--json", action="store_true", help="print a JSON list of the points' summaries (each with its units) with the swept values and their K's "
                    "regime_fractions and bistable (replicas in different regimes)")
@@ -95,6 +95,10 @@ def cmd_sweep(a) -> int:
 
     req, run_kw = request(a)
     plan(req)  # every point validated before a store is touched or a kernel runs
+    if a.out:  # its folder must exist and be writable (an existing store: the store's own rules)
+        from taimill.model.files import check_output
+
+        check_output(a.out, "--out", overwrite=None)
     store = SweepStore.create(a.out, req.identity(), overwrite=a.overwrite) if a.out else None
     show_bar = not a.json or sys.stderr.isatty()
     if show_bar:

@@ -3,18 +3,18 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 
 def register(subparsers):
-    from taimill.cli.common import add_overrides as _add_overrides
+    from taimill.cli.common import add_overrides as _add_overrides, number, path_text
 
     t = subparsers.add_parser("tui", help="live terminal UI: tune Ω, the jar speed and friction of a running mill")
-    t.add_argument("preset", help="preset TOML file, e.g. presets/p4-cy-steel.toml")
-    t.add_argument("--out-dir", default=".", help="folder for recordings (.rrd, .zarr) and PNG snapshots (default .)")
-    t.add_argument("--window", type=float, default=4.0, help="sliding window of the readouts, simulated s (default 4)")
+    t.add_argument("preset", type=path_text, help="preset TOML file, e.g. presets/p4-cy-steel.toml")
+    t.add_argument("--out-dir", type=path_text, default=".",
+                   help="folder for recordings (.rrd, .zarr) and PNG snapshots, created if needed (default .)")
+    t.add_argument("--window", type=number, default=4.0, help="sliding window of the readouts, simulated s (default 4)")
     t.add_argument("--paused", action="store_true", help="start paused")
-    _add_overrides(t)
+    _add_overrides(t, live=True)  # the mill runs until quit: no --duration, --analysis-start
     t.set_defaults(fn=cmd_tui)
 
 
@@ -25,9 +25,9 @@ def cmd_tui(a) -> int:
 
     if not 0.1 <= a.window <= 600:
         raise ConfigError("command line", "--window", a.window, "allowed range [0.1, 600] s")
-    out_dir = Path(a.out_dir)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise ConfigError("command line", "--out-dir", a.out_dir, "must be a folder")
+    from taimill.model.files import check_output
+
+    out_dir = check_output(a.out_dir, "--out-dir", overwrite=None, folder=True)  # recordings get new names
     overrides = _overrides(a)
     preset = load_preset(a.preset, overrides)
     print("taimill: compiling the kernels …", file=sys.stderr)

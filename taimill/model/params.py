@@ -96,7 +96,8 @@ class Jar:
 
     @functools.cached_property
     def profile(self) -> geometry.Profile:
-        return geometry.build_profile(self.primitives, self.fillet)
+        key = tuple((kind, tuple(sorted(values.items()))) for kind, values in self.primitives)
+        return _profile(key, self.fillet)
 
     @property
     def radius(self) -> float:
@@ -156,6 +157,19 @@ class Preset:
         del d["drive"]
         d["initial_positions"] = None if self.initial_positions is None else self.initial_positions.tolist()
         return d | self.drive.as_dict()
+
+
+@functools.lru_cache(maxsize=64)
+def _profile(primitives: tuple, fillet: float) -> geometry.Profile:
+    """The profile of hashable primitives ((kind, ((param, value), ...)), ...): built
+    once per process (0.1 s each; a sweep loads its preset once per point)."""
+    return geometry.build_profile(tuple((kind, dict(values)) for kind, values in primitives), fillet)
+
+
+@functools.lru_cache(maxsize=256)
+def _auto_dt(ball_ball: NormalLaw, ball_wall: NormalLaw, v_max: float) -> float:
+    """laws.auto_dt, once per process for a pair of laws and a speed (it simulates impacts)."""
+    return laws_np.auto_dt((ball_ball, ball_wall), v_max)
 
 
 # ------------------------------------------------------------------ checking
@@ -559,7 +573,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     seed = t.get("seed", 0, kind=int, lo=0, hi=2**63 - 1)
 
     v_max = max_impact_speed(drive.plate_omega, drive.jar_spin, plate_radius, jar, gravity)
-    dt_auto = laws_np.auto_dt((ball_ball, ball_wall), v_max)
+    dt_auto = _auto_dt(ball_ball, ball_wall, v_max)
     dt_raw = t.data.get("dt", "auto")
     t.used.add("dt")
     if dt_raw == "auto":

@@ -9,6 +9,7 @@ file (or "command line"), the key or option, the value and what is allowed; exit
 
 from __future__ import annotations
 
+import functools
 import sys
 
 from taimill.cli import calibrate, catalog, compare, liggghts, record, report, run, sweep, tui
@@ -27,7 +28,9 @@ def version() -> str:
         return "unknown (not installed)"
 
 
+@functools.lru_cache(maxsize=1)
 def parser() -> Parser:
+    """The command line's parser (built once: parsing leaves it unchanged)."""
     p = Parser(prog="taimill", description="Planetary ball mill simulator (Taichi DEM in the jar frame).")
     p.add_argument("--version", action="version", version=f"taimill {version()}")
     sub = p.add_subparsers(dest="command", required=True)

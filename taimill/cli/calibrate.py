@@ -86,7 +86,6 @@ def cmd_fit(a) -> int:
     from taimill.errors import ConfigError
 
     from taimill.model.files import check_output
-    from taimill.model.params import pair_contact
 
     _check(a.scatter, "--scatter", 0, 1, "(1 s.d. of e)")
     if a.out and not a.out.endswith(".toml"):
@@ -95,7 +94,6 @@ def cmd_fit(a) -> int:
         check_output(a.out, "--out", overwrite=a.overwrite)
     _check_figure(a)
     data = load_drop_data(a.data)
-    pair_contact(a.pair, law=a.law)  # bad input is reported before taichi starts
     try:
         fit = fit_drops(a.pair, data, param=a.param, law=a.law, scatter=a.scatter)
     except FitError as err:
@@ -162,13 +160,14 @@ def _offsets(text: str) -> list[float]:
             lo, hi, step = (float(x) for x in text.split(":"))
             if not (step > 0 and math.isfinite(lo) and math.isfinite(hi) and math.isfinite(step)):
                 raise ValueError
-            if (hi - lo) / step + 1 > MAX_OFFSETS:
-                raise ConfigError("command line", "--offsets", text, f"{(hi - lo) / step + 1:.3g} offsets; at most {MAX_OFFSETS}")
-            values = [round(float(x), 9) for x in np.arange(lo, hi + 0.5 * step, step)]
         else:
             values = [float(x) for x in text.split(",")]
     except ValueError:
         raise ConfigError("command line", "--offsets", text, "A:B:STEP or a comma list, in mm (STEP > 0)") from None
+    if ":" in text:
+        if (hi - lo) / step + 1 > MAX_OFFSETS:
+            raise ConfigError("command line", "--offsets", text, f"{(hi - lo) / step + 1:.3g} offsets; at most {MAX_OFFSETS}")
+        values = [round(float(x), 9) for x in np.arange(lo, hi + 0.5 * step, step)]
     if not values or len(values) > MAX_OFFSETS:
         raise ConfigError("command line", "--offsets", text, f"1 to {MAX_OFFSETS} offsets")
     return values

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 
 from taimill.errors import one_line
@@ -21,7 +22,15 @@ LIVE_IGNORED = ("duration", "analysis_start")  #: overrides a live mill has no u
 class Parser(argparse.ArgumentParser):
     """argparse with its errors as one line on stderr, like every other bad input:
     `taimill: error: command line: WHAT (see `taimill CMD --help`)`, exit code 2. The
-    usage block argparse prints first is left out; --help shows it."""
+    usage block argparse prints first is left out; --help shows it. Negative numbers
+    in any notation are values ("--dt -1e-6", "--ratio -inf"), so the value is what
+    gets refused, not the option reported as missing its argument."""
+
+    NEGATIVE_NUMBER = re.compile(r"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$|^-(?:inf|infinity|nan)$", re.IGNORECASE)
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = self.NEGATIVE_NUMBER
 
     def error(self, message):
         print(f"taimill: error: command line: {one_line(message)} (see `{self.prog} --help`)", file=sys.stderr)

@@ -66,7 +66,6 @@ def replay(store, sink) -> None:
 
 def cmd_record(a) -> int:
     from taimill.errors import ConfigError
-    from taimill.recording.sink import RerunSink
     from taimill.store.run import open_run
 
     check_output(a.rrd, a.overwrite)
@@ -77,6 +76,8 @@ def cmd_record(a) -> int:
         raise ConfigError("command line", "RUN.zarr", a.run, f"not a taimill run store ({err})") from None
     if store.config is None or not len(store.frames["time"]):
         raise ConfigError("command line", "RUN.zarr", a.run, "a run store with a config and at least one frame")
+    from taimill.recording.sink import RerunSink  # rerun is slow to import: after the checks
+
     replay(store, RerunSink(a.rrd, lab_frame=a.lab_frame, histogram_every=a.histogram_every))
     print(f"{a.rrd}: {len(store.frames['time'])} frames, {len(store.events['t_start'])} events "
           f"(run status: {store.status}); open it with `taimill view {a.rrd}`")

@@ -16,7 +16,7 @@ MAX_SAMPLING_RATE = 1e5  #: /s, the highest trajectory rate a preset may store
 
 
 def _add_analysis_options(p):
-    p.add_argument("run", type=path_text, help="run store written by `taimill run --out` (RUN.zarr)")
+    p.add_argument("run", metavar="RUN", type=path_text, help="run store written by `taimill run --out` (RUN.zarr)")
     p.add_argument("--analysis-start", type=number, help="start of the analysis window (s; default: the run's)")
     p.add_argument("--min-un", type=number, default=STRESS_MIN_UN * 1e3,
                    help=f"stress events: events with at least this onset normal speed (mm/s, default "
@@ -57,8 +57,10 @@ def _open(a):
     from taimill.store.run import open_run
 
     _check_options(a)
+    if not Path(a.run).exists():
+        raise ConfigError("command line", "RUN", a.run, "no such run store (RUN.zarr, written by taimill run --out)")
     if not Path(a.run).is_dir():
-        raise ConfigError("command line", "RUN", a.run, "an existing run store directory (RUN.zarr)")
+        raise ConfigError("command line", "RUN", a.run, "is a file; need a run store folder (RUN.zarr)")
     try:
         store = open_run(a.run)
         if not store.config:
@@ -99,9 +101,8 @@ def cmd_report(a) -> int:
 
         if a.overlay:
             raise ConfigError("command line", "--overlay", a.overlay, "only for sweep stores (taimill sweep --out)")
-        analysis = _open(a)
         _refuse_existing(out, list(FIGURES), a)
-        paths = write_report(analysis, out, a.format)
+        paths = write_report(_open(a), out, a.format)
     for p in paths:
         print(p)
     return 0

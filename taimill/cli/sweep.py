@@ -10,7 +10,7 @@ import math
 import re
 import sys
 
-from taimill.cli.common import LAW_HELP, integer, name_text, number, path_text
+from taimill.cli.common import LAW_HELP, Parser, integer, name_text, number, path_text
 from taimill.errors import ConfigError
 
 REFINE_METRICS = ("mean_se", "mean_se_normal", "mean_se_tangential", "impact_power", "impact_power_normal",
@@ -29,7 +29,7 @@ def register(subparsers) -> None:
     s = subparsers.add_parser("sweep", help="sweep K (and Ω, pair, balls, jar) with batched mills on all cores")
     # K is mostly negative: let "--ratio -2:-4:0.2" and "--ratio -1,-2" through as values
     # (argparse only lets plain negative numbers through; the form --ratio=… always works)
-    s._negative_number_matcher = re.compile(r"^-\d*\.?\d+(?:[:,][-+\d.:,eE]*)?$")
+    s._negative_number_matcher = re.compile(rf"{Parser.NEGATIVE_NUMBER.pattern}|^-\d*\.?\d+(?:[eE][-+]?\d+)?(?:[:,][-+\d.:,eE]*)?$", re.IGNORECASE)
     s.add_argument("preset", type=path_text, help="preset TOML file, e.g. presets/p4-cy-steel.toml")
     g = s.add_argument_group("swept values: A:B:STEP (inclusive; e.g. 0:-4:0.2), v1,v2,… or one value")
     g.add_argument("--ratio", help="K = ω/Ω + 1 values")

@@ -622,14 +622,15 @@ def load_positions(name: str, base: Path, balls: Balls, jar: Jar, source) -> np.
     """Ball centres (N, 3), m, jar frame, from CSV (x,y,z per line) or NPZ (array 'positions')."""
     files.check_path_text(name, source, "initial_positions")
     p = Path(name) if Path(name).is_absolute() else base / name
-    data = files.read_bytes(p, source, "initial_positions")
+    npz = p.suffix == ".npz"
+    data = files.read_bytes(p, source, "initial_positions") if npz else files.read_text(p, source, "initial_positions", "CSV file")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # an empty file: loadtxt warns, the shape check below reports it
-            if p.suffix == ".npz":
+            if npz:
                 x = np.load(io.BytesIO(data), allow_pickle=False)["positions"]
             else:
-                x = np.loadtxt(io.StringIO(data.decode("utf-8-sig")), delimiter=",", ndmin=2)
+                x = np.loadtxt(io.StringIO(data), delimiter=",", ndmin=2)
             x = np.asarray(x, dtype=float)
     except (OSError, KeyError, ValueError, TypeError, EOFError) as err:
         raise ConfigError(source, "initial_positions", name, f"cannot read ({err})") from None

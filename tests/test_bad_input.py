@@ -89,6 +89,7 @@ FILE_KINDS = {
     "broken symlink": ("broken", None),
     "path through a file": ("afile/x", None),
     "over 64 MiB": ("huge", "MiB"),
+    "name too long": ("a" * 300, "too long"),
 }
 TOML_KINDS = {"syntax error": ("syntax", "not valid TOML"), "nested too deep": ("deep", "not valid TOML"),
               "empty": ("empty", None)}
@@ -133,7 +134,7 @@ def _file_cases():
     for name, argv, path, words in cases:
         if any("{P:" in a for a in argv):  # a preset naming the bad file under that key
             key = next(a for a in argv if "{P:" in a)[3:-1]
-            argv = [a.replace(f"{{P:{key}}}", f"{{in}}/presets/ref-{key}-{Path(path).stem}-{Path(path).parent.name}.toml")
+            argv = [a.replace(f"{{P:{key}}}", f"{{in}}/presets/ref-{key}-{Path(path).stem[:20]}-{Path(path).parent.name}.toml")
                     for a in argv]
             out.append((name, argv, words, {"ref": (key, path)}))
         else:
@@ -323,6 +324,7 @@ VALUES = [
     ("view a folder", ["view", "{work}/adir.rrd"], ["RUN.rrd", "regular file"]),
     ("view a fifo", ["view", "{in}/bad/fifo.toml"], ["RUN.rrd", "regular file"]),
     ("view a device", ["view", "{in}/bad/device.toml"], ["RUN.rrd", "regular file"]),
+    ("view name too long", ["view", "{work}/" + "a" * 300 + ".rrd"], ["RUN.rrd", "no such file"]),
     # calibrate
     ("calibrate without experiment", ["calibrate"], ["required", "experiment"]),
     ("calibrate unknown experiment", ["calibrate", "bounce"], ["invalid choice", "bounce"]),
@@ -394,6 +396,7 @@ VALUES = [
 
 # RUN stores: (name, path) -> word
 STORES = {"missing": ("{in}/missing.zarr", "no such"), "a file": ("{in}/afile.zarr", None),
+          "name too long": ("{in}/" + "a" * 300 + ".zarr", "no such"),
           "an empty folder": ("{in}/empty.zarr", "not a taimill run store"), "a folder of junk": ("{in}/junk.zarr", "not a taimill run store"),
           "a zarr group without config": ("{in}/noconfig.zarr", None), "empty": ("", "empty")}
 STORE_READERS = {"analyse": ["analyse", "{S}"], "report": ["report", "{S}", "--out", "{work}/rep"],
@@ -797,3 +800,19 @@ def test_negative_numbers_in_any_notation_are_values():
     assert (a.dt, a.ratio, a.jar_rpm) == ("-1e-6", -2.6, -700.0)
     a = parser().parse_args(["sweep", PRESET, "--ratio", "-2:-4:0.2", "--dt", "-1e-6", "--plate-rpm", "-1e2,-2e2"])
     assert (a.ratio, a.dt, a.plate_rpm) == ("-2:-4:0.2", "-1e-6", "-1e2,-2e2")
+
+
+def test_an_unreadable_file_is_one_line(tmp_path, monkeypatch):
+    """Permission denied (root reads everything, so the error is raised by a stand-in)."""
+    from taimill.errors import ConfigError
+    from taimill.model.files import read_toml
+
+    p = tmp_path / "locked.toml"
+    p.write_text("a = 1\n")
+
+    def denied(self):
+        raise PermissionError(13, "Permission denied", str(self))
+
+    monkeypatch.setattr(Path, "read_bytes", denied)
+    with pytest.raises(ConfigError, match="locked.toml': cannot read: permission denied"):
+        read_toml(p, "command line", "preset")

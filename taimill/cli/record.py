@@ -23,11 +23,11 @@ def _existing(path: str, key: str, folder: bool) -> Path:
     from taimill.errors import ConfigError
 
     p = Path(path)
-    if not p.exists():
+    if not os.path.exists(p):  # os.path: a name the OS refuses (too long) is no such file either
         raise ConfigError("command line", key, path, "no such file or directory")
-    if folder and not p.is_dir():
+    if folder and not os.path.isdir(p):
         raise ConfigError("command line", key, path, "is a file; need a run store folder (RUN.zarr)")
-    if not folder and not p.is_file():
+    if not folder and not os.path.isfile(p):
         raise ConfigError("command line", key, path, "not a regular file; need a recording file (RUN.rrd)")
     return p
 

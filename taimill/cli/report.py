@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from pathlib import Path
 
 from taimill.cli.common import number, path_text
@@ -57,9 +58,9 @@ def _open(a):
     from taimill.store.run import open_run
 
     _check_options(a)
-    if not Path(a.run).exists():
+    if not os.path.exists(a.run):  # os.path: a name the OS refuses (too long) is no such store either
         raise ConfigError("command line", "RUN", a.run, "no such run store (RUN.zarr, written by taimill run --out)")
-    if not Path(a.run).is_dir():
+    if not os.path.isdir(a.run):
         raise ConfigError("command line", "RUN", a.run, "is a file; need a run store folder (RUN.zarr)")
     try:
         store = open_run(a.run)
@@ -112,7 +113,7 @@ def _refuse_existing(out: Path, stems, a) -> None:
     """No figure already in `out` is replaced without --overwrite."""
     from taimill.errors import ConfigError
 
-    there = [out / f"{s}.{a.format}" for s in stems if (out / f"{s}.{a.format}").exists()]
+    there = [out / f"{s}.{a.format}" for s in stems if os.path.lexists(out / f"{s}.{a.format}")]
     if there and not a.overwrite:
         raise ConfigError("command line", "--out", str(out), f"already holds {there[0].name} (and {len(there) - 1} more "
                           "figure(s) of this report); pass --overwrite to replace them")
@@ -126,7 +127,7 @@ def _is_sweep(path) -> bool:
         from taimill.store.sweep import is_sweep
     except ImportError:
         return False
-    return Path(path).is_dir() and is_sweep(path)
+    return os.path.isdir(path) and is_sweep(path)
 
 
 def _f(v, scale=1.0, unit=""):

@@ -32,6 +32,18 @@ def check_path_text(text, source, key, what: str = "a file name") -> str:
     return text
 
 
+def missing(path) -> bool:
+    """True if there is no such file (nor a link) at path; a path the OS refuses for
+    another reason (a name too long, a loop) is not missing: reading it says why."""
+    try:
+        os.lstat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return True
+    except (OSError, ValueError):
+        return False
+    return False
+
+
 def read_bytes(path, source, key, what: str = "file") -> bytes:
     """The bytes of the regular file at `path` (see the module doc)."""
     text = check_path_text(str(path) if isinstance(path, Path) else path, source, key)

@@ -301,7 +301,7 @@ def _pair_file(name: str, source, key, base: Path | None) -> tuple[Friction, str
     keys and units as materials.toml; materials are the built-in ones). Its contact
     set's id is "FILE#CONTACT"; a contact name the file lacks is a built-in one."""
     path = Path(name) if Path(name).is_absolute() or base is None else base / name
-    if not path.exists() and not path.is_symlink():
+    if files.missing(path):  # a broken link or a name the OS refuses: read_toml says why
         raise ConfigError(source, key, name, f"no pair file {path}; built-in pairs: {', '.join(_materials_db()['pair'])}")
     data = _read_toml(path, key, source)
     top = _Table(data, path)
@@ -373,7 +373,7 @@ def jar_names() -> list[str]:
 def load_jar(name: str, source="preset", base: Path | None = None) -> Jar:
     files.check_path_text(name, source, "jar", "a jar name or jar file")
     path = resolve_jar_path(name, base)
-    if not path.exists() and not path.is_symlink():
+    if files.missing(path):
         raise ConfigError(source, "jar", name, f"no jar file {path}; known jars: {', '.join(jar_names())}")
     t = _Table(_read_toml(path, "jar", source), path, known=JAR_KEYS)
     height = t.get("height_mm", lo=0, lo_open=True, hi=1000) * 1e-3

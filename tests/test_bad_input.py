@@ -254,6 +254,7 @@ VALUES = [
     ("sweep --ratio repeated", SWEEP + ["--ratio", "-1,-1"], ["--ratio", "repeated"]),
     ("sweep --ratio too many values", SWEEP + ["--ratio", "0:-4000:0.0001"], ["--ratio", "at most"]),
     ("sweep --ratio nan", SWEEP + ["--ratio", "nan"], ["--ratio", "finite"]),
+    ("sweep --ratio range too wide to count", SWEEP + ["--ratio", "0:1e308:1e-308"], ["--ratio", "at most 10000"]),
     ("sweep --ratio nan in a range", SWEEP + ["--ratio", "0:nan:1"], ["--ratio", "finite"]),
     ("sweep --ratio empty", SWEEP + ["--ratio", ""], ["--ratio"]),
     ("sweep --ratio out of range", SWEEP + ["--ratio", "-12,-2"], ["ratio", "-12", "[-10, 10]"]),
@@ -372,6 +373,7 @@ VALUES = [
     ("calibrate oblique --offsets negative", OBLIQUE + ["--offsets", "-1"], ["--offsets", "-1"]),
     ("calibrate oblique --offsets tiny step", OBLIQUE + ["--offsets", "0:12:1e-9"], ["--offsets", "at most 1000"]),
     ("calibrate oblique --offsets inf", OBLIQUE + ["--offsets", "0:inf:1"], ["--offsets", "A:B:STEP"]),
+    ("calibrate oblique --offsets negative range", OBLIQUE + ["--offsets", "-1e308:1e308:1"], ["--offsets", "at most 1000"]),
     ("calibrate oblique --offsets empty range", OBLIQUE + ["--offsets", "5:1:1"], ["--offsets", "1 to 1000"]),
     ("calibrate oblique --offsets empty", OBLIQUE + ["--offsets", ""], ["--offsets"]),
     ("calibrate oblique --offsets nan", OBLIQUE + ["--offsets", "nan"], ["--offsets"]),
@@ -800,6 +802,8 @@ def test_negative_numbers_in_any_notation_are_values():
     assert (a.dt, a.ratio, a.jar_rpm) == ("-1e-6", -2.6, -700.0)
     a = parser().parse_args(["sweep", PRESET, "--ratio", "-2:-4:0.2", "--dt", "-1e-6", "--plate-rpm", "-1e2,-2e2"])
     assert (a.ratio, a.dt, a.plate_rpm) == ("-2:-4:0.2", "-1e-6", "-1e2,-2e2")
+    a = parser().parse_args(["calibrate", "oblique", "--pair", "steel-steel", "--offsets", "-1:2:1"])
+    assert a.offsets == "-1:2:1"
 
 
 def test_an_unreadable_file_is_one_line(tmp_path, monkeypatch):

@@ -23,10 +23,12 @@ class Parser(argparse.ArgumentParser):
     """argparse with its errors as one line on stderr, like every other bad input:
     `taimill: error: command line: WHAT (see `taimill CMD --help`)`, exit code 2. The
     usage block argparse prints first is left out; --help shows it. Negative numbers
-    in any notation are values ("--dt -1e-6", "--ratio -inf"), so the value is what
-    gets refused, not the option reported as missing its argument."""
+    in any notation, and lists and ranges that start with one, are values ("--dt -1e-6",
+    "--ratio -inf", "--ratio -2:-4:0.2", "--ratio -1,-2"), so the value is what gets
+    refused or taken, not the option reported as missing its argument (argparse only
+    lets plain negative numbers through; the form --ratio=… always works)."""
 
-    NEGATIVE_NUMBER = re.compile(r"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$|^-(?:inf|infinity|nan)$", re.IGNORECASE)
+    NEGATIVE_NUMBER = re.compile(r"^-\.?\d|^-(?:inf|infinity|nan)$", re.IGNORECASE)  #: no option starts so
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)

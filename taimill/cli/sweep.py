@@ -7,10 +7,9 @@ from __future__ import annotations
 
 import json
 import math
-import re
 import sys
 
-from taimill.cli.common import LAW_HELP, Parser, integer, name_text, number, path_text
+from taimill.cli.common import LAW_HELP, integer, name_text, number, path_text
 from taimill.errors import ConfigError
 
 REFINE_METRICS = ("mean_se", "mean_se_normal", "mean_se_tangential", "impact_power", "impact_power_normal",
@@ -26,10 +25,8 @@ GROUP_COLUMNS = (("jar", "jar", None, "s"), ("balls", "balls", 1, "d"), ("pair",
 
 
 def register(subparsers) -> None:
+    # K is mostly negative: "--ratio -2:-4:0.2" and "--ratio -1,-2" are values (common.Parser)
     s = subparsers.add_parser("sweep", help="sweep K (and Ω, pair, balls, jar) with batched mills on all cores")
-    # K is mostly negative: let "--ratio -2:-4:0.2" and "--ratio -1,-2" through as values
-    # (argparse only lets plain negative numbers through; the form --ratio=… always works)
-    s._negative_number_matcher = re.compile(rf"{Parser.NEGATIVE_NUMBER.pattern}|^-\d*\.?\d+(?:[eE][-+]?\d+)?(?:[:,][-+\d.:,eE]*)?$", re.IGNORECASE)
     s.add_argument("preset", type=path_text, help="preset TOML file, e.g. presets/p4-cy-steel.toml")
     g = s.add_argument_group("swept values: A:B:STEP (inclusive; e.g. 0:-4:0.2), v1,v2,… or one value")
     g.add_argument("--ratio", help="K = ω/Ω + 1 values")
@@ -62,14 +59,17 @@ def register(subparsers) -> None:
 def request(a):
     """Validated sweep.Request from the parsed arguments."""
     from taimill.cli.common import dt_option
-    from taimill.runs.sweep import Request, parse_values
+    from taimill.runs.sweep import MAX_POINTS, Request, parse_values
 
     axes = {}
     for key, opt, kind in (("ratio", "--ratio", float), ("plate_rpm", "--plate-rpm", float), ("pair", "--pair", str),
                            ("balls.count", "--balls", int), ("jar", "--jar", str)):
         text = getattr(a, key.replace(".count", "").replace("-", "_"))
         if text is not None:
-            axes[key] = parse_values(text, opt, kind)
+            try:
+                axes[key] = parse_values(text, opt, kind)
+            except OverflowError:  # A:B:STEP whose count of values is not even a finite number
+                raise ConfigError("command line", opt, text, f"a range A:B:STEP of at most {MAX_POINTS} values") from None
     overrides = {k: v for k, v in {"seed": a.seed, "duration": a.duration, "analysis_start": a.analysis_start,
                                     "dt": dt_option(a.dt), "law": a.law}.items() if v is not None}
     if a.scheduler and a.workers is not None:

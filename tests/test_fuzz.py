@@ -20,12 +20,10 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
 
-hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
-
-from taimill.errors import ConfigError  # noqa: E402
-from taimill.model.params import BALLS_KEYS, FRICTION_KEYS, JAR_KEYS, NORMAL_LAW_KEYS, PRESET_KEYS  # noqa: E402
+from taimill.errors import ConfigError
+from taimill.model.params import BALLS_KEYS, FRICTION_KEYS, JAR_KEYS, NORMAL_LAW_KEYS, PRESET_KEYS
 
 ROOT = Path(__file__).resolve().parent.parent
 PRESET = str(ROOT / "presets" / "p4-cy-steel.toml")

@@ -452,6 +452,9 @@ def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source,
     table, file, name = contact_table(contact)
     _Table(table, file, f"contact.{name}.", known=CONTACT_KEYS)
     override = override or {}
+    for k in override:
+        if not isinstance(table.get(k, {}), dict):
+            raise ConfigError(file, f"contact.{name}.{k}", table[k], "must be a table")
     table = {**table, **{k: {**table.get(k, {}), **v} for k, v in override.items()}}
     changed = frozenset(f"contact.{name}.{k}.{leaf}" for k, v in override.items() for leaf in v)
     t = _Table(table, file, f"contact.{name}.", changed, known=CONTACT_KEYS)

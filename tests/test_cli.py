@@ -155,3 +155,13 @@ def test_existing_output_is_not_overwritten(tmp_path):
     res = taimill("run", "presets/p4-cy-steel.toml", "--duration", 0.01, "--out", out)
     assert res.returncode == 2 and "--overwrite" in res.stderr
     assert (out / "precious").exists()
+
+
+def test_a_reader_that_leaves_early_gets_no_traceback():
+    # `taimill presets | head -1`: the pipe closes under the listing
+    p = subprocess.Popen([sys.executable, "-m", "taimill.cli", "presets"], cwd=ROOT,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p.stdout.read(10)
+    p.stdout.close()
+    err = p.stderr.read().decode()
+    assert p.wait(timeout=60) == 0 and "Traceback" not in err and "BrokenPipe" not in err, err

@@ -10,6 +10,7 @@ file (or "command line"), the key or option, the value and what is allowed; exit
 from __future__ import annotations
 
 import functools
+import os
 import sys
 
 from taimill.cli import calibrate, catalog, compare, liggghts, record, report, run, sweep, tui
@@ -54,3 +55,7 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("taimill: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # `taimill presets | head`: the reader left; nothing to report
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # so the interpreter's final flush stays quiet
+        return 0

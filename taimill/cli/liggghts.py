@@ -38,11 +38,11 @@ def register(sub) -> None:
 
 
 def _check_out(path: str, overwrite: bool) -> None:
-    from taimill.errors import ConfigError
+    """The output folder (case or store) checked like every command's outputs: not
+    empty, not an existing path without --overwrite, its nearest existing folder writable."""
+    from taimill.model.files import check_output
 
-    p = Path(path)
-    if p.exists() and not overwrite:
-        raise ConfigError("command line", "--out", path, "exists; pass --overwrite to replace it")
+    check_output(path, "--out", overwrite=overwrite, folder=True)
 
 
 def cmd_export(a) -> int:
@@ -72,6 +72,10 @@ def cmd_import(a) -> int:
 
     if not Path(a.case).is_dir():
         raise ConfigError("command line", "DIR", a.case, "an existing case directory (taimill export liggghts --out)")
+    from taimill.bridge.liggghts import MANIFEST
+
+    if not (Path(a.case) / MANIFEST).is_file():  # before the output is touched
+        raise ConfigError("command line", "DIR", a.case, f"not a case exported by `taimill export liggghts` (no {MANIFEST})")
     _check_out(a.out, a.overwrite)
     summary = import_case(a.case, a.out, dump=a.dump)
     if a.json:

@@ -20,10 +20,38 @@ def _shown(value) -> str:
 class ConfigError(ValueError):
     """A preset, jar, material or command-line value that cannot be simulated."""
 
+    exit_code = 2  #: of the command line
+
     def __init__(self, source: str, key: str, value, allowed: str):
         self.source, self.key, self.value, self.allowed = str(source), key, value, allowed
         super().__init__(one_line(f"{self.source}: {key} = {_shown(value)}: {allowed}"))
 
 
+class StoreError(ConfigError):
+    """A store or output file that cannot be used: damaged, not a store, or in use by
+    another writer. The message names the store, the part (`events/un`, `attrs.status`,
+    `lock`) and what is wrong with it."""
+
+    def __init__(self, store, part: str, why: str):
+        self.source, self.key, self.value, self.allowed = str(store), part, None, why
+        ValueError.__init__(self, f"{self.source}: {part}: {why}")
+
+
+class StoreWriteError(StoreError):
+    """The operating system refused a write (disk full, permissions, I/O error); what
+    was committed before stays readable."""
+
+    exit_code = 5
+
+
 class SimulationUnstable(RuntimeError):
     """The integration produced a non-finite state or a ball left the jar."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C or SIGTERM stopped the work early: handled like KeyboardInterrupt (rows
+    flushed, status "interrupted"); the message says what was kept."""
+
+    def __init__(self, message: str = "interrupted", exit_code: int = 130):
+        super().__init__(message)
+        self.exit_code = exit_code

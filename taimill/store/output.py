@@ -1,0 +1,262 @@
+"""Writing an output (run store, sweep store, recording) safely.
+
+- **One writer per output.** `OutputLock` holds an exclusive `flock` on `PATH.lock`
+  beside the output for as long as it writes; a second writer is refused with a line
+  naming the holder (pid, host, start time, command), read from the lock file. flock,
+  not an O_EXCL lock file: the kernel drops the lock when its holder dies however it
+  dies (kill -9 included), so a stale lock can never block anyone and no guess whether
+  a recorded pid is still alive (or reused) is needed. The holder removes the file when
+  it is done; one left behind by a killed writer is simply locked again by the next.
+  On a file system without locks the output is written unlocked.
+- **Nothing good destroyed before its successor is complete.** With --overwrite an
+  existing output is not touched while the new one is built beside it
+  (`partial_path`: RUN.partial-PID.zarr); at the end `swap_in` exchanges the two
+  (atomically where Linux' renameat2 can, else rename aside, rename in) and deletes
+  the old one. If the work fails (unstable, interrupted, an error), the old output
+  stays as it was and the new partial one is kept beside it under that name; the
+  message says so.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import errno
+import fcntl
+import json
+import os
+import shlex
+import shutil
+import socket
+import sys
+import time
+from pathlib import Path
+
+from taimill.errors import ConfigError, Interrupted, StoreError, StoreWriteError
+
+NO_LOCKS = {errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL}
+
+
+def lock_path(path) -> Path:
+    """The lock file of an output: PATH.lock beside it."""
+    p = Path(path)
+    return p.with_name(p.name + ".lock")
+
+
+def partial_path(path, pid: int | None = None) -> Path:
+    """Where a replacement of `path` is built: RUN.zarr -> RUN.partial-PID.zarr (the
+    suffix stays last, so tools that go by it still open the file)."""
+    p = Path(path)
+    suffix = p.suffix
+    stem = p.name[: -len(suffix)] if suffix else p.name
+    return p.with_name(f"{stem}.partial-{os.getpid() if pid is None else pid}{suffix}")
+
+
+def _command() -> str:
+    argv = list(sys.argv) or ["python"]
+    if Path(argv[0]).name in ("taimill", "__main__.py"):
+        argv[0] = "taimill"
+    elif argv[0] == "-c":
+        argv[0:1] = ["python", "-c", "…"]
+    return shlex.join(argv)
+
+
+def _holder(fd: int) -> str:
+    """Who holds a lock, from its file: "pid P on HOST since T (COMMAND)"."""
+    try:
+        info = json.loads(os.pread(fd, 65536, 0).decode() or "{}")
+        return f"pid {info['pid']} on {info['host']} since {info['started']} ({info['command']})"
+    except (OSError, ValueError, KeyError, TypeError):
+        return "another process (it has not said who yet)"
+
+
+class OutputLock:
+    """Exclusive lock of one output path (module doc); a context manager."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.file = lock_path(path)
+        self.fd: int | None = None
+
+    def acquire(self) -> "OutputLock":
+        while True:
+            try:
+                fd = os.open(self.file, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as err:
+                raise StoreWriteError(self.path, "lock", f"cannot create {self.file} ({err.strerror})") from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = _holder(fd)
+                os.close(fd)
+                raise StoreError(self.path, "in use", f"{holder} is writing it; wait for it to finish or stop it") from None
+            except OSError as err:
+                if err.errno not in NO_LOCKS:
+                    os.close(fd)
+                    raise StoreWriteError(self.path, "lock", f"cannot lock {self.file} ({err.strerror})") from None
+                break  # no locks on this file system: write unlocked
+            # the file may have been removed by the holder we waited for: lock the file that is there
+            try:
+                same = os.path.samestat(os.fstat(fd), os.stat(self.file))
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        self.fd = fd
+        info = {"pid": os.getpid(), "host": socket.gethostname(), "started": time.strftime("%Y-%m-%d %H:%M:%S"),
+                "command": _command()}
+        try:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, json.dumps(info).encode(), 0)
+        except OSError:
+            pass  # a full disk: the lock holds without its description
+        return self
+
+    def release(self) -> None:
+        if self.fd is None:
+            return
+        try:
+            if os.path.samestat(os.fstat(self.fd), os.stat(self.file)):
+                os.unlink(self.file)  # while still holding it (see acquire)
+        except OSError:
+            pass
+        os.close(self.fd)
+        self.fd = None
+
+    def __enter__(self):
+        return self.acquire()
+
+    def __exit__(self, *exc):
+        self.release()
+
+
+def remove(path) -> None:
+    """Delete a file or directory tree, if there."""
+    p = Path(path)
+    if p.is_dir() and not p.is_symlink():
+        shutil.rmtree(p)
+    elif os.path.lexists(p):
+        p.unlink()
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Atomically exchange two paths (Linux renameat2 RENAME_EXCHANGE); False where
+    the system or the file system cannot."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        fn = ctypes.CDLL(None, use_errno=True).renameat2
+    except (OSError, AttributeError):
+        return False
+    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    at_fdcwd, rename_exchange = -100, 2
+    return fn(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), rename_exchange) == 0
+
+
+def swap_in(build, target) -> None:
+    """Put the finished `build` at `target` and delete what was there. Where the
+    exchange is atomic `target` is never missing; else the old output is renamed aside
+    (TARGET.old-PID) for the instant between two renames."""
+    build, target = Path(build), Path(target)
+    if not os.path.lexists(target):
+        os.rename(build, target)
+    elif _exchange(build, target):
+        remove(build)  # now the old output
+    else:
+        aside = target.with_name(f"{target.name}.old-{os.getpid()}")
+        os.rename(target, aside)
+        os.rename(build, target)
+        remove(aside)
+
+
+class Output:
+    """One output path written by this process (module doc):
+
+        with Output("RUN.zarr", overwrite=True, what="run") as out:
+            ...write into out.build...
+            out.commit()
+
+    `out.build` is the path itself for a new output (or one reused: `reuse=True`, a
+    sweep resumed in place), RUN.partial-PID.zarr when it replaces an existing one.
+    Leaving the block without commit() (an error, an interrupt) keeps an existing
+    output unchanged; the partial one stays beside it if `keep(build)` says it holds
+    anything worth keeping (default: it exists), else it is deleted. An interrupt
+    leaves as an `Interrupted` whose message says where things are."""
+
+    def __init__(self, path, *, overwrite: bool = False, reuse: bool = False, option: str = "--out",
+                 what: str = "output", keep=None):
+        self.path = Path(path)
+        self.overwrite, self.reuse, self.option, self.what = overwrite, reuse, option, what
+        self.keep = keep or os.path.lexists
+        self.lock = OutputLock(path)
+        self.build = self.path
+        self.replacing = self.committed = False
+
+    def __enter__(self) -> "Output":
+        self.lock.acquire()
+        try:
+            exists = os.path.lexists(self.path)
+            if exists and not (self.overwrite or self.reuse):
+                raise ConfigError("command line", self.option, str(self.path), "exists; pass --overwrite to replace it")
+            self.replacing = exists and self.overwrite
+            if self.replacing:
+                self.build = partial_path(self.path)
+                remove(self.build)
+        except BaseException:
+            self.lock.release()
+            raise
+        return self
+
+    def commit(self) -> None:
+        """The work is complete: the new output takes the path (module doc)."""
+        if self.replacing:
+            try:
+                swap_in(self.build, self.path)
+            except OSError as err:
+                raise StoreWriteError(self.path, "replace", f"could not put {self.build} in its place ({err}); "
+                                      f"{self.path} is unchanged or beside it as {self.path.name}.old-{os.getpid()}") from None
+        self.committed = True
+
+    def kept(self) -> str:
+        """Where the output of unfinished work is, for the one-line message."""
+        if not self.replacing:
+            return f"the {self.what} so far is in {self.path}" if os.path.lexists(self.path) else f"nothing was written to {self.path}"
+        if os.path.lexists(self.build):
+            return f"{self.path} is unchanged; the partial {self.what} is in {self.build}"
+        return f"{self.path} is unchanged"
+
+    def __exit__(self, exc_type, err, tb):
+        try:
+            if err is None or self.committed:
+                return
+            if self.replacing and os.path.lexists(self.build) and not self.keep(self.build):
+                remove(self.build)
+            if isinstance(err, KeyboardInterrupt):
+                raise Interrupted(f"{str(err) or 'interrupted'}; {self.kept()}", getattr(err, "exit_code", 130)) from err
+            if isinstance(err, StoreWriteError) and self.replacing:
+                raise StoreWriteError(err.source, err.key, f"{err.allowed}; {self.kept()}") from err
+        finally:
+            self.lock.release()
+
+
+class Outputs(contextlib.ExitStack):
+    """Several `Output`s of one command entered together (a run's store and recording):
+    `add` enters one and returns where to write it, `commit` swaps every one in,
+    `kept` says where the outputs of unfinished work are."""
+
+    def __init__(self):
+        super().__init__()
+        self.items: list[Output] = []
+
+    def add(self, path, **kw) -> Path:
+        out = self.enter_context(Output(path, **kw))
+        self.items.append(out)
+        return out.build
+
+    def commit(self) -> None:
+        for out in self.items:
+            out.commit()
+
+    def kept(self) -> str:
+        return "; ".join(out.kept() for out in self.items)

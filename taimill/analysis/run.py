@@ -13,9 +13,9 @@ from taimill.analysis.rungeometry import RunGeometry
 from taimill.analysis.sampled import SampledStats
 from taimill.analysis.spatial import RadialDensity, WallMap, contact_map
 from taimill.analysis.theory import critical_ratio, single_ball_hit
-from taimill.errors import ConfigError
+from taimill.errors import ConfigError, StoreError
 from taimill.model.mechanisms import STRESS_MIN_UN
-from taimill.store.run import RunStore, open_run
+from taimill.store.run import RunStore, open_run, why
 from taimill.analysis.summary import EnergyLedger
 from taimill.schema import with_units
 
@@ -78,10 +78,14 @@ def analyse(run, *, analysis_start: float | None = None, min_un: float = STRESS_
     config = store.config
     if not config:
         raise ConfigError(source, "RUN", getattr(store.group.store, "root", store.group), "a taimill run store (no config attribute)")
-    geom = RunGeometry.from_config(config, store.radii)
+    geom = geometry(store)
     frames, events, energy = store.frames, store.events, store.energy
-    t_end = float(frames["time"][-1]) if len(frames["time"]) else 0.0
+    if not len(frames["time"]):
+        raise StoreError(store.where, "trajectory", f"no committed frame (status {store.status!r}): nothing to analyse")
+    t_end = float(frames["time"][-1])
     t0 = window_start(store, geom) if analysis_start is None else analysis_start
+    if analysis_start is None and store.analysis_window is None and t0 >= t_end:
+        t0 = 0.0  # a writer stopped before its window began: what there is, from the start
     if not 0 <= t0 < max(t_end, 1e-300):
         raise ConfigError(source, "--analysis-start", t0, f"[0, {t_end:g}) s, the stored run ends at {t_end:g} s")
     if min_un < 0:
@@ -114,6 +118,14 @@ def analyse(run, *, analysis_start: float | None = None, min_un: float = STRESS_
                        regime=features.result(), wall=wall, energy=ledger.result(t_end - t0),
                        sampled=sampled, sampled_error=error, contacts=contact_map(geom, events, t0),
                        all_contacts=every)
+
+
+def geometry(store: RunStore) -> RunGeometry:
+    """The run's geometry from its config; StoreError if the config is not a run's."""
+    try:
+        return RunGeometry.from_config(store.config or {}, store.radii)
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as err:
+        raise StoreError(store.where, "attrs.config", f"not the config of a taimill run ({why(err)})") from None
 
 
 def window_start(store: RunStore, geom: RunGeometry) -> float:

@@ -6,22 +6,49 @@ Layout of one run group (docs/outputs.md):
     trajectory/  time (F,) s; position, velocity, spin (F, N, 3) m, m/s, rad/s
     events/      one 1-D array per `EVENT_COLUMNS` entry
     energy/      one 1-D array per `ENERGY_COLUMNS` entry
+    journal/     while the writer runs: NNNNNNNN.npz, the rows committed since the last
+                 whole chunk of each table
 
-Crash safety (zarr 3.1, tests/test_store.py): every key is written atomically, but an append resizes an
-array before its data lands. So each table group carries an attribute `n_valid`, written
-only after every array of the table holds its rows; readers slice to it and a restarted
-writer trims back to it (`trim_to_valid`). A SIGKILL at any moment leaves a readable store.
+Crash safety (zarr 3.1, tests/test_store.py, tests/test_faults.py): every key is written
+atomically, but an append resizes an array before its data lands. So each table group
+carries an attribute `n_valid`, written only after every array of the table holds its
+rows; readers slice to it and a restarted writer trims back to it (`trim_to_valid`).
+Rows reach the arrays in whole chunks. Between chunks, the sink commits whenever a
+ledger block brings the simulated time `commit_every` (0.2 s) past the last commit,
+i.e. after every 0.25 s launch of a run: the rows not yet in the arrays since the last
+commit, of every table, go to ONE journal file (`TABLE/start`, `TABLE/COLUMN` in a
+NumPy .npz, written atomically); readers append the journal's rows after `n_valid`.
+Appending a sub-chunk block to each of the 47 arrays instead would cost a resize and a
+chunk rewrite per array, ≈ 0.2 s per commit, as long as the launch itself (zarr's cost
+per call); the journal costs ≈ 4 ms. Segments whose rows all reached the arrays are
+deleted, the journal when the writer finishes. A SIGKILL at any moment thus leaves a
+readable store missing at most the launch under way. A write the operating system
+refuses (a full disk) raises `StoreWriteError` naming the store; what was committed
+before stays readable.
+
+Reading checks what it reads (`RunStore.check`): attributes of the wrong type, a table or
+array missing from a store whose writer finished, chunks missing below `n_valid`, a chunk
+or journal file that does not decode, or tables that disagree with the summary raise
+`StoreError` naming the store and the part, instead of reading as fill values or as a
+complete run.
 """
 
 from __future__ import annotations
 
+import io
+import math
 import os
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import cached_property
+from pathlib import Path
 
 import numpy as np
 import zarr
+from zarr.core.buffer import default_buffer_prototype
+from zarr.core.sync import sync
 
+from taimill.errors import StoreError, StoreWriteError
 from taimill.schema import (DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_COLUMNS, MECHANISM_COLUMNS, PER_BALL,
                             VELOCITY_CONVENTION)
 
@@ -29,6 +56,16 @@ SCHEMA_VERSION = 2
 # Columns a version-1 store lacks (read as absent from such a store): the frame's
 # drive and the dissipation by mechanism.
 ADDED_IN_2 = frozenset(DRIVE_FIELDS) | frozenset(MECHANISM_COLUMNS)
+# Simulated seconds between commits (module doc): below a run's 0.25 s launch, so that
+# every launch of `taimill run` commits.
+COMMIT_SECONDS = 0.2
+# Rows committed between whole chunks (module doc): one .npz per commit in this group.
+JOURNAL = "journal"
+JOURNAL_DESCRIPTION = ("rows committed since the last whole chunk of each table, one NumPy .npz per commit "
+                       "(TABLE/start, TABLE/COLUMN); readers append them after n_valid; deleted when the writer finishes")
+# Statuses whose writer called finish() after flushing everything: the tables hold
+# every row the summary counted.
+FLUSHED = ("complete", "interrupted", "unstable")
 
 
 @dataclass(frozen=True)
@@ -99,8 +136,11 @@ class _TableWriter:
 
     def __init__(self, parent: zarr.Group, name: str, columns: dict[str, Column], chunk: int):
         self.name, self.columns, self.chunk = name, columns, chunk
+        # every_chunk_stored: chunks equal to the fill value are written too, so a
+        # missing chunk below n_valid is damage, not zeros (RunStore.check)
         self.group = parent.create_group(
-            name, overwrite=True, attributes={"n_valid": 0, "description": TABLE_DESCRIPTIONS[name]}
+            name, overwrite=True,
+            attributes={"n_valid": 0, "description": TABLE_DESCRIPTIONS[name], "every_chunk_stored": True}
         )
         self.arrays = {k: self._create(k, c) for k, c in columns.items()}
         self.committed = 0
@@ -116,6 +156,7 @@ class _TableWriter:
             fill_value=np.nan if c.dtype.startswith("f") else 0,
             dimension_names=c.dims,
             attributes={"units": c.units, "description": c.description},
+            config={"write_empty_chunks": True},
         )
 
     def add(self, block: dict) -> None:
@@ -130,6 +171,16 @@ class _TableWriter:
     def flush(self) -> None:
         """Write and commit every buffered row."""
         self._write(self.n_pending)
+
+    def tail(self, start: int) -> dict[str, np.ndarray]:
+        """The buffered rows from row `start` (counted from the table's first row, at
+        least `committed`) on."""
+        out = {}
+        for k, c in self.columns.items():
+            data = np.concatenate(self.pending[k]) if self.pending[k] else np.zeros((0, *c.row_shape), dtype=c.dtype)
+            self.pending[k] = [data]
+            out[k] = data[start - self.committed:]
+        return out
 
     def _validated(self, block: dict) -> dict[str, np.ndarray]:
         check_columns(block, self.columns, self.name)
@@ -167,61 +218,157 @@ class ZarrSink:
     `path_or_group`: a path is opened with mode "w" (a fresh run overwrites it); a
     `zarr.Group` (e.g. one subgroup per sweep point) gets the run's tables, replacing any
     it held. `frame_chunk` rows per chunk for trajectory and energy, `event_chunk` for
-    events; rows reach the disk when a chunk fills, on `flush()` and on `finish`."""
+    events. Rows reach the disk when a chunk fills, when a ledger block brings the
+    simulated time `commit_every` seconds past the last commit (every table is then
+    committed), on `flush()` and on `finish`. An OSError while writing (a full disk)
+    raises `StoreWriteError`; `finish` after it only tries to record the status."""
 
-    def __init__(self, path_or_group, *, frame_chunk: int = 1024, event_chunk: int = 65536):
+    def __init__(self, path_or_group, *, frame_chunk: int = 1024, event_chunk: int = 65536,
+                 commit_every: float = COMMIT_SECONDS):
+        self.failed: str | None = None
         if isinstance(path_or_group, zarr.Group):
             self.group = path_or_group
+            self.where = location(path_or_group)
         else:
-            self.group = zarr.open_group(path_or_group, mode="w")
+            self.where = str(path_or_group)
+            with self._writing("zarr.json"):
+                self.group = zarr.open_group(path_or_group, mode="w")
         self.chunks = {"trajectory": frame_chunk, "events": event_chunk, "energy": frame_chunk}
+        self.commit_every = commit_every
+        self.t_commit = -math.inf
         self.tables: dict[str, _TableWriter] = {}
+        self.journaled: dict[str, int] = {}  #: rows of each table that are in the arrays or the journal
+        self.segments: list[tuple[str, dict[str, int]]] = []  #: journal keys and their end row per table
+        self.seq = 0
+
+    @contextmanager
+    def _writing(self, part: str):
+        """An OSError of the file system inside becomes StoreWriteError(part)."""
+        try:
+            yield
+        except OSError as err:
+            self.failed = f"{part}: {err.strerror or err}"
+            raise StoreWriteError(self.where, part, f"write failed ({err.strerror or err}); "
+                                  "the rows committed before are readable") from err
 
     def start(self, config: dict, n_balls: int, radii: np.ndarray) -> None:
         """Write the run attributes (config, radii in m) and create the empty tables."""
         radii = np.asarray(radii, dtype=float)
         if radii.shape != (n_balls,):
             raise ValueError(f"radii of shape {radii.shape}, expected ({n_balls},)")
-        self.group.attrs.update(
-            {
-                "schema_version": SCHEMA_VERSION,
-                "config": plain(config),
-                "n_balls": int(n_balls),
-                "radii": radii.tolist(),
-                "status": "running",
-                "conventions": VELOCITY_CONVENTION,
-            }
-        )
-        self.tables = {
-            name: _TableWriter(self.group, name, columns, self.chunks[name])
-            for name, columns in layout(n_balls).items()
-        }
+        with self._writing("attrs"):
+            self.group.attrs.update(
+                {
+                    "schema_version": SCHEMA_VERSION,
+                    "config": plain(config),
+                    "n_balls": int(n_balls),
+                    "radii": radii.tolist(),
+                    "status": "running",
+                    "conventions": VELOCITY_CONVENTION,
+                }
+            )
+        for name, columns in layout(n_balls).items():
+            with self._writing(name):
+                self.tables[name] = _TableWriter(self.group, name, columns, self.chunks[name])
+        self.journaled = {name: 0 for name in self.tables}
+        with self._writing(JOURNAL):
+            if JOURNAL in self.group:  # a group reused for a new run
+                del self.group[JOURNAL]
+
+    def _add(self, table: str, block: dict) -> None:
+        with self._writing(table):
+            self.tables[table].add(block)
 
     def frames(self, block: dict[str, np.ndarray]) -> None:
         """Append frames: time (F,) s; position, velocity, spin (F, N, 3) m, m/s, rad/s."""
-        self.tables["trajectory"].add(block)
+        self._add("trajectory", block)
 
     def events(self, block: dict[str, np.ndarray]) -> None:
         """Append collision events, one array per `EVENT_COLUMNS` entry."""
-        self.tables["events"].add(block)
+        self._add("events", block)
 
     def energy(self, block: dict[str, np.ndarray]) -> None:
-        """Append energy-ledger rows, one array per `ENERGY_COLUMNS` entry (J, time in s)."""
-        self.tables["energy"].add(block)
+        """Append energy-ledger rows, one array per `ENERGY_COLUMNS` entry (J, time in s);
+        commits every table when due (class doc). A launch sends its events, frames and
+        ledger rows in this order, so each commit holds whole launches."""
+        self._add("energy", block)
+        t = np.asarray(block["time"])
+        if len(t) and float(t[-1]) >= self.t_commit + self.commit_every:
+            self.commit()
+            self.t_commit = float(t[-1])
+
+    def commit(self) -> None:
+        """Make every row received so far durable at the cost of one file: the rows not
+        yet in whole chunks of the arrays go to one journal segment (module doc)."""
+        starts = {name: max(self.journaled[name], t.committed) for name, t in self.tables.items()}
+        tails = {name: t.tail(starts[name]) for name, t in self.tables.items()}
+        ends = {name: starts[name] + len(next(iter(rows.values()))) for name, rows in tails.items()}
+        if ends == starts:
+            return
+        parts = {}
+        for name, rows in tails.items():
+            parts[f"{name}/start"] = np.asarray(starts[name], dtype=np.int64)
+            parts.update({f"{name}/{k}": v for k, v in rows.items()})
+        buf = io.BytesIO()
+        np.savez(buf, **parts)
+        with self._writing(JOURNAL):
+            if self.seq == 0:
+                self.group.create_group(JOURNAL, overwrite=True, attributes={"description": JOURNAL_DESCRIPTION})
+            self.seq += 1
+            key = f"{self.group.path}/{JOURNAL}/{self.seq:08d}.npz".lstrip("/")
+            sync(self.group.store.set(key, default_buffer_prototype().buffer.from_bytes(buf.getvalue())))
+        self.journaled = ends
+        self.segments.append((key, ends))
+        self._prune()
+
+    def _prune(self) -> None:
+        """Delete the journal segments whose rows all reached the arrays."""
+        keep = []
+        for key, ends in self.segments:
+            if all(end <= self.tables[name].committed for name, end in ends.items()):
+                try:
+                    sync(self.group.store.delete(key))
+                    continue
+                except OSError:
+                    pass
+            keep.append((key, ends))
+        self.segments = keep
 
     def flush(self) -> None:
-        """Write and commit every buffered row of every table."""
-        for table in self.tables.values():
-            table.flush()
+        """Write every buffered row into the arrays and commit it (n_valid); the journal
+        is then no longer needed and deleted."""
+        for name, table in self.tables.items():
+            with self._writing(name):
+                table.flush()
+        if self.seq:
+            with self._writing(JOURNAL):
+                del self.group[JOURNAL]
+            self.seq, self.segments = 0, []
+        self.journaled = {name: t.committed for name, t in self.tables.items()}
 
     def finish(self, summary: dict, status: str) -> None:
         """Flush, then record `summary`, `status` ("complete", "unstable: …", …) and
-        the summary's `analysis_window` ([start, end], s) as the store's own."""
-        self.flush()
-        attrs = {"summary": plain(summary, "summary"), "status": status}
-        if "analysis_window" in summary:
-            attrs["analysis_window"] = plain(summary["analysis_window"], "analysis_window")
-        self.group.attrs.update(attrs)
+        the summary's `analysis_window` ([start, end], s) as the store's own. After a
+        failed write only the status is recorded ("failed: …"), if the disk lets it."""
+        if self.failed is None:
+            try:
+                self.flush()
+                attrs = {"summary": plain(summary, "summary"), "status": status}
+                if "analysis_window" in summary:
+                    attrs["analysis_window"] = plain(summary["analysis_window"], "analysis_window")
+                with self._writing("attrs"):
+                    self.group.attrs.update(attrs)
+                return
+            except StoreWriteError:
+                self._record_failure(status)
+                raise
+        self._record_failure(status)
+
+    def _record_failure(self, status: str) -> None:
+        try:
+            self.group.attrs["status"] = f"failed: {self.failed}" if self.failed else status
+        except Exception:  # the disk still refuses: the status stays "running", also not complete
+            pass
 
 
 def committed_rows(group: zarr.Group, table: str) -> int:
@@ -229,37 +376,195 @@ def committed_rows(group: zarr.Group, table: str) -> int:
     return int(group[table].attrs.get("n_valid", 0)) if table in group else 0
 
 
-def _read_table(group: zarr.Group, table: str, columns: dict[str, Column], version: int | None = None
-                ) -> dict[str, np.ndarray]:
-    if version is not None and version < 2 and table in group:
-        columns = {k: c for k, c in columns.items() if k not in ADDED_IN_2 or k in group[table]}
-    n = committed_rows(group, table)
-    if n == 0:
-        return {k: np.zeros((0, *c.row_shape), dtype=c.dtype) for k, c in columns.items()}
-    out = {}
-    for k in columns:
-        arr = group[table][k]
-        if arr.shape[0] < n:
-            raise ValueError(f"{table}/{k} has {arr.shape[0]} rows but n_valid = {n}: corrupt store")
-        out[k] = arr[:n]
-    return out
+def location(group: zarr.Group) -> str:
+    """Where a group is, for messages: its store's directory and its path inside it."""
+    root = getattr(group.store, "root", None)
+    base = str(root) if root is not None else str(group.store)
+    return str(Path(base) / group.path) if group.path else base
 
 
-def _as_group(path_or_group, mode: str) -> zarr.Group:
-    if isinstance(path_or_group, zarr.Group):
-        return path_or_group
-    return zarr.open_group(path_or_group, mode=mode)
+def why(err: BaseException) -> str:
+    text = " ".join(f"{type(err).__name__}: {err}".split())
+    return text if len(text) <= 160 else text[:157] + "..."
+
+
+def _short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _stored_keys(store, prefix: str) -> set[str]:
+    """Every key under `prefix` in a zarr store (one listing)."""
+    async def collect():
+        return {k async for k in store.list_prefix(prefix)}
+
+    return sync(collect())
+
+
+def _chunk_key(arr: zarr.Array, i: int) -> str:
+    return f"{arr.path}/{arr.metadata.encode_chunk_key((i,) + (0,) * (arr.ndim - 1))}"
+
+
+def read_rows(arr: zarr.Array, n: int, where: str, part: str) -> np.ndarray:
+    """arr[:n]; a chunk that does not decode raises StoreError naming it."""
+    try:
+        return arr[:n]
+    except Exception:
+        size = arr.chunks[0]
+        for i in range(-(-n // size)):
+            try:
+                arr[i * size:min(n, (i + 1) * size)]
+            except Exception as err:
+                raise StoreError(where, part, f"chunk {i} unreadable ({why(err)})") from None
+        raise
+
+
+_ATTR_TYPES = {"schema_version": int, "n_balls": int, "status": str, "config": dict, "summary": dict,
+               "analysis_window": list, "radii": list}
 
 
 class RunStore:
     """Read-only view of a run written by `ZarrSink`, each table sliced to its `n_valid`.
 
     Works on the store of a killed writer: uncommitted rows are ignored, and attributes
-    the writer never reached read as None."""
+    the writer never reached read as None. `open_run` checks the store first (`check`)."""
 
-    def __init__(self, group: zarr.Group):
+    def __init__(self, group: zarr.Group, where: str | None = None):
         self.group = group
+        self.where = where or location(group)
         self.attrs = group.attrs.asdict()
+        self.n_valid: dict[str, int] = {}  #: rows committed in the arrays
+        self.rows: dict[str, int] = {}  #: rows committed in the arrays and the journal
+        self.columns: dict[str, dict[str, Column]] = {}
+        self.journal_rows: dict[str, list[dict[str, np.ndarray]]] = {}
+
+    def _bad(self, part: str, why: str):
+        raise StoreError(self.where, part, why)
+
+    def check(self) -> "RunStore":
+        """Raise StoreError for what would otherwise read wrongly (module doc): attributes
+        of the wrong type; a table or array missing from a store whose writer finished;
+        n_valid beyond the arrays; chunks missing below n_valid; tables that disagree with
+        the summary of a writer that flushed everything."""
+        for key, kind in _ATTR_TYPES.items():
+            v = self.attrs.get(key)
+            if v is not None and (not isinstance(v, kind) or isinstance(v, bool)):
+                self._bad(f"attrs.{key}", f"{_short(v)} is not a {kind.__name__}")
+        if self.n_balls < 0:
+            self._bad("attrs.n_balls", f"{self.n_balls} is negative")
+        radii = self.attrs.get("radii", [])
+        if len(radii) != self.n_balls or not all(isinstance(r, (int, float)) and not isinstance(r, bool)
+                                                  and math.isfinite(r) and r > 0 for r in radii):
+            self._bad("attrs.radii", f"{_short(radii)} is not {self.n_balls} positive radii (m)")
+        window = self.analysis_window
+        if window is not None and (len(window) != 2 or not all(isinstance(x, (int, float)) for x in window)):
+            self._bad("attrs.analysis_window", f"{_short(window)} is not [start, end] (s)")
+        if (self.schema_version or 0) > SCHEMA_VERSION:
+            self._bad("attrs.schema_version", f"{self.schema_version}: this taimill reads versions up to {SCHEMA_VERSION}")
+        finished = self.summary is not None and not str(self.status).startswith("failed")
+        for table, columns in layout(self.n_balls).items():
+            self._check_table(table, columns, finished)
+        self.rows = dict(self.n_valid)
+        self._fold_journal()
+        self._check_summary()
+        return self
+
+    def _fold_journal(self) -> None:
+        """Rows of the journal segments that continue each table after its n_valid
+        (module doc); a segment past a gap (a writer's deleted segment seen by a
+        reader of a live store) and everything after it are left out."""
+        prefix = f"{self.group.path}/{JOURNAL}/".lstrip("/")
+        keys = sorted(k for k in _stored_keys(self.group.store, prefix) if k.endswith(".npz"))
+        self.journal_rows = {table: [] for table in self.columns}
+        for key in keys:
+            part = key[len(self.group.path):].lstrip("/")
+            try:
+                raw = sync(self.group.store.get(key, prototype=default_buffer_prototype()))
+                with np.load(io.BytesIO(raw.to_bytes()), allow_pickle=False) as z:
+                    segment = {name: z[name] for name in z.files}
+            except Exception as err:
+                self._bad(part, f"unreadable ({why(err)})")
+            for table, columns in self.columns.items():
+                if f"{table}/start" not in segment:
+                    continue
+                start = int(segment[f"{table}/start"])
+                cols = {}
+                for k, c in columns.items():
+                    v = segment.get(f"{table}/{k}")
+                    if v is None or v.dtype != np.dtype(c.dtype) or v.shape[1:] != c.row_shape:
+                        self._bad(part, f"{table}/{k}: missing or not rows of shape {c.row_shape}, dtype {c.dtype}")
+                    cols[k] = v
+                m = len(next(iter(cols.values()))) if cols else 0
+                if any(len(v) != m for v in cols.values()):
+                    self._bad(part, f"{table}: columns differ in length")
+                n = self.rows[table]
+                if start > n or start + m <= n:
+                    continue  # past a gap, or rows the arrays hold already
+                self.journal_rows[table].append({k: v[n - start:] for k, v in cols.items()})
+                self.rows[table] = start + m
+
+    def _check_table(self, table: str, columns: dict[str, Column], finished: bool) -> None:
+        try:
+            present = table in self.group
+            g = self.group[table] if present else None
+        except Exception as err:
+            self._bad(table, f"metadata unreadable ({why(err)})")
+        if g is None:
+            if finished:
+                self._bad(table, "missing (its writer finished, so it was there)")
+            self.n_valid[table], self.columns[table] = 0, columns
+            return
+        n = g.attrs.get("n_valid", 0)
+        if not isinstance(n, int) or isinstance(n, bool) or n < 0:
+            self._bad(f"{table}/n_valid", f"{_short(n)} is not a row count")
+        every_chunk = g.attrs.get("every_chunk_stored") is True
+        keys = None
+        self.columns[table] = {}
+        for k, c in columns.items():
+            part = f"{table}/{k}"
+            try:
+                arr = g[k]
+            except KeyError:
+                if (self.schema_version or SCHEMA_VERSION) < 2 and k in ADDED_IN_2:
+                    continue  # a version-1 store: readers skip the column
+                self._bad(part, "missing")
+            except Exception as err:
+                self._bad(part, f"metadata unreadable ({why(err)})")
+            if not isinstance(arr, zarr.Array) or arr.shape[1:] != c.row_shape or arr.dtype != np.dtype(c.dtype):
+                what = f"shape {arr.shape}, dtype {arr.dtype}" if isinstance(arr, zarr.Array) else "a group"
+                self._bad(part, f"{what}; expected rows of shape {c.row_shape}, dtype {c.dtype}")
+            if arr.shape[0] < n:
+                self._bad(part, f"{arr.shape[0]} rows but n_valid = {n}")
+            # a missing chunk reads as the fill value: NaN (never written by a run) for
+            # floats; for integers only a store that writes every chunk can tell
+            if n and (every_chunk or arr.dtype.kind == "f"):
+                keys = _stored_keys(self.group.store, f"{g.path}/") if keys is None else keys
+                size = arr.chunks[0]
+                missing = [i for i in range(-(-n // size)) if _chunk_key(arr, i) not in keys]
+                if missing:
+                    i = missing[0]
+                    self._bad(part, f"chunk {i} missing (rows {i * size}–{min(n, (i + 1) * size) - 1} of the "
+                                    f"{n} committed{f'; {len(missing)} chunks missing' if len(missing) > 1 else ''})")
+            self.columns[table][k] = c
+        self.n_valid[table] = n
+
+    def _check_summary(self) -> None:
+        status, s = str(self.status), self.summary
+        if s is None or not status.startswith(FLUSHED):
+            return
+        total = s.get("events_total")
+        if isinstance(total, int) and total != self.rows["events"]:
+            self._bad("events", f"{self.rows['events']} committed rows, but the summary counts {total} events")
+        if self.rows["energy"] != self.rows["trajectory"]:
+            self._bad("energy", f"{self.rows['energy']} committed rows for {self.rows['trajectory']} frames")
+        sim, dt = s.get("sim_seconds"), s.get("dt")
+        if status == "complete" and isinstance(sim, (int, float)) and isinstance(dt, (int, float)):
+            n = self.rows["trajectory"]
+            if not n:
+                self._bad("trajectory", f"no committed frame, but the run is complete at {sim:g} s")
+            t = float(self.column("trajectory", "time")[-1])
+            if not abs(t - sim) <= 1.5 * dt:
+                self._bad("trajectory", f"ends at t = {t:g} s, but the complete run reached {sim:g} s")
 
     @property
     def schema_version(self) -> int | None:
@@ -309,12 +614,39 @@ class RunStore:
         return self._table("energy")
 
     def _table(self, name: str) -> dict[str, np.ndarray]:
-        return _read_table(self.group, name, layout(self.n_balls)[name], self.schema_version)
+        if name not in self.rows:
+            self.check()
+        return {k: self.column(name, k) for k in self.columns[name]}
+
+    def column(self, table: str, name: str) -> np.ndarray:
+        """The committed rows of one column: the array's n_valid rows, then the journal's."""
+        if table not in self.rows:
+            self.check()
+        n, c = self.n_valid[table], self.columns[table][name]
+        rows = read_rows(self.group[table][name], n, self.where, f"{table}/{name}") if n else np.zeros((0, *c.row_shape), dtype=c.dtype)
+        extra = [b[name] for b in self.journal_rows.get(table, [])]
+        return np.concatenate([rows, *extra]) if extra else rows
 
 
 def open_run(path_or_group) -> RunStore:
-    """Open a run store (path opened read-only, or a `zarr.Group`) for reading."""
-    return RunStore(_as_group(path_or_group, "r"))
+    """Open a run store (path opened read-only, or a `zarr.Group`) for reading, checked
+    (`RunStore.check`): StoreError names what is damaged."""
+    if isinstance(path_or_group, zarr.Group):
+        return RunStore(path_or_group).check()
+    where = str(path_or_group)
+    if not os.path.exists(where):
+        raise StoreError(where, "store", "no such file or directory")
+    try:
+        group = zarr.open_group(path_or_group, mode="r")
+    except Exception as err:
+        raise StoreError(where, "zarr.json", f"not a taimill run store, or its metadata is damaged ({why(err)})") from None
+    return RunStore(group, where).check()
+
+
+def _as_group(path_or_group, mode: str) -> zarr.Group:
+    if isinstance(path_or_group, zarr.Group):
+        return path_or_group
+    return zarr.open_group(path_or_group, mode=mode)
 
 
 def trim_to_valid(path_or_group) -> None:

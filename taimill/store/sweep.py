@@ -12,23 +12,30 @@ Layout:
              K_c (plate_radius, jar_radius, ball_radius, m), every scalar of the point's
              summary (integers as i8, other numbers as f8, text as strings), and `done`.
 
-Crash safety (as the run store, run.py): only the process running the sweep writes. A point's row
+Crash safety (as the run store, run.py): only the process running the sweep writes, and
+`writing` makes sure of it (a lock beside the store, taimill.store.output). A point's row
 is written after its group is finished, and `done` last; readers use rows with `done`.
 A killed sweep re-run with the same request skips every finished point (a point whose
-group finished but whose row was not yet marked is re-indexed from the group's summary)
-and re-runs the rest, which is seeded and so gives the same result.
+group finished but whose row was not yet marked is re-indexed from the group's summary;
+a point group that is damaged is re-run) and re-runs the rest, which is seeded and so
+gives the same result. With overwrite an existing store is replaced only when the new
+sweep has finished (built beside it, then swapped in). Reading names damaged parts
+(StoreError): unreadable metadata or chunks, a missing array, group or point.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 import zarr
 
-from taimill.errors import ConfigError
-from taimill.store.run import ZarrSink, open_run, plain
+from taimill.errors import ConfigError, StoreError
+from taimill.store.output import Output
+from taimill.store.run import ZarrSink, location, open_run, plain, read_rows, why
 
 SCHEMA_VERSION = 1
 VALUE_COLUMNS = ("jar", "balls", "pair", "plate_rpm", "ratio", "seed", "replica",
@@ -49,11 +56,34 @@ def is_sweep(path) -> bool:
         return False
 
 
-class SweepStore:
-    """A sweep store open for writing (`create`) or reading (`open_sweep`)."""
+def _any_done(path) -> bool:
+    """Whether a (partial) sweep store holds a finished point."""
+    try:
+        return bool(np.any(zarr.open_group(path, mode="r")["table"]["done"][:]))
+    except Exception:
+        return False
 
-    def __init__(self, root: zarr.Group):
+
+@contextlib.contextmanager
+def writing(path, request: dict, *, overwrite: bool = False):
+    """The store for `request` at `path` (`SweepStore.create`), locked for this process
+    while the block runs (a second writer is refused, naming this one). Without
+    overwrite an existing store of the same request is resumed in place. With it an
+    existing store stays untouched until the block ends without error: the new sweep
+    is built beside it (SWEEP.partial-PID.zarr) and then swapped in. A sweep that fails
+    or is interrupted leaves the old store as it was and keeps the partial one beside it
+    if it finished a point (else deletes it); the error says where things are."""
+    with Output(path, overwrite=overwrite, reuse=True, what="sweep", keep=_any_done) as out:
+        yield SweepStore.create(out.build, request, overwrite=out.replacing)
+        out.commit()
+
+
+class SweepStore:
+    """A sweep store open for writing (`create`, `writing`) or reading (`open_sweep`)."""
+
+    def __init__(self, root: zarr.Group, where: str | None = None):
         self.root = root
+        self.where = where or location(root)
 
     # ---------------------------------------------------------------- opening
     @classmethod
@@ -118,8 +148,11 @@ class SweepStore:
             name = _name(i)
             if i in finished or name not in points:
                 continue
-            run = open_run(points[name])
-            if run.summary is not None and run.status not in (None, "running"):
+            try:
+                run = open_run(points[name])
+            except StoreError:
+                continue  # damaged: run it again
+            if run.summary is not None and run.status not in (None, "running") and not run.status.startswith("failed"):
                 self._write_row(i, run.summary)
                 finished.add(i)
         return finished
@@ -128,7 +161,7 @@ class SweepStore:
     def write_point(self, result) -> None:
         """Store one sweep_exec.PointResult: its run group, then its table row."""
         group = self.root["points"].require_group(_name(result.index))
-        sink = ZarrSink(group)
+        sink = ZarrSink(group, commit_every=math.inf)  # all rows at once: no journal commits
         sink.start(result.config, result.n_balls, result.radii)
         if result.tables is not None:
             for table, write in (("frames", sink.frames), ("events", sink.events), ("energy", sink.energy)):
@@ -154,15 +187,40 @@ class SweepStore:
 
     # ---------------------------------------------------------------- reading
     def table(self) -> dict[str, np.ndarray]:
-        """Columns over the finished points, in plan order."""
-        t = self.root["table"]
-        done = t["done"][:]
+        """Columns over the finished points, in plan order (StoreError names a damaged column)."""
+        t = self._member("table")
+        done = self._column("done")
         rows = np.flatnonzero(done)
-        return {name: np.asarray(t[name][:])[rows] for name in t.array_keys() if name != "done"}
+        try:
+            names = sorted(t.array_keys())
+        except Exception as err:
+            raise StoreError(self.where, "table", f"metadata unreadable ({why(err)})") from None
+        out = {}
+        for name in names:
+            if name != "done":
+                column = self._column(name)
+                if len(column) != len(done):
+                    raise StoreError(self.where, f"table/{name}", f"{len(column)} rows, but done has {len(done)}")
+                out[name] = np.asarray(column)[rows]
+        return out
+
+    def _member(self, path: str):
+        try:
+            return self.root[path]
+        except KeyError:
+            raise StoreError(self.where, path, "missing") from None
+        except Exception as err:
+            raise StoreError(self.where, path, f"metadata unreadable ({why(err)})") from None
+
+    def _column(self, name: str) -> np.ndarray:
+        arr = self._member(f"table/{name}")
+        if not isinstance(arr, zarr.Array) or arr.ndim != 1:
+            raise StoreError(self.where, f"table/{name}", "not a 1-D array")
+        return read_rows(arr, arr.shape[0], self.where, f"table/{name}")
 
     def point(self, i: int):
-        """The run store (store.RunStore) of point i."""
-        return open_run(self.root["points"][_name(i)])
+        """The run store (store.RunStore) of point i, checked (StoreError names damage)."""
+        return open_run(self._member(f"points/{_name(i)}"))
 
     @property
     def refine(self) -> dict | None:
@@ -172,7 +230,11 @@ class SweepStore:
 def open_sweep(path, mode: str = "r") -> SweepStore:
     if not is_sweep(path):
         raise ConfigError("command line", "sweep store", str(path), "is not a sweep store (made by taimill sweep --out)")
-    return SweepStore(zarr.open_group(path, mode=mode))
+    store = SweepStore(zarr.open_group(path, mode=mode), str(path))
+    plan = store.root.attrs.get("plan")
+    if not isinstance(plan, list) or not all(isinstance(p, dict) and {"key", "overrides", "values"} <= set(p) for p in plan):
+        raise StoreError(path, "attrs.plan", "not a list of planned points (key, overrides, values)")
+    return store
 
 
 def scalars(summary: dict) -> dict:

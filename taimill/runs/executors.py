@@ -6,7 +6,9 @@ Backends:
 - local: `ProcessPoolExecutor` with the **spawn** start method (fork after `ti.init`
   hangs); every worker calls `init_taichi(threads=1)` once and keeps its
   engine between chunks (simulation._engines); progress comes back over a queue after
-  every kernel launch.
+  every kernel launch. Workers die with the parent, even a parent killed with SIGKILL
+  (taimill.runs.signals.die_with_parent), and ignore Ctrl-C: the parent stops them
+  when it is interrupted or its consumer stops (no chunk runs on unseen).
 - dask: `distributed.Client(address).submit` per chunk; a dask worker process starts
   Taichi lazily on its first chunk and reuses it. Workers must run one thread each
   (`dask worker ADDRESS --nthreads 1`; `processes=False` or several threads break
@@ -16,7 +18,9 @@ Backends:
 from __future__ import annotations
 
 import multiprocessing
+import os
 import queue as queue_mod
+import signal
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
@@ -57,9 +61,12 @@ def chunk_seconds(jobs: list[Job]) -> float:
 _progress = None  # the local backend's queue, set in each worker process
 
 
-def _init_local_worker(progress_queue):
+def _init_local_worker(progress_queue, parent: int):
     from taimill.physics.runner import init_taichi
+    from taimill.runs.signals import die_with_parent
 
+    die_with_parent(parent)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent is interrupted and stops the workers
     global _progress
     _progress = progress_queue
     init_taichi(threads=1)  # in the worker's main thread, where its kernels run
@@ -128,7 +135,7 @@ def run_local(chunks: list[list[Job]], workers: int, keep_streams: bool, on_prog
     ctx = multiprocessing.get_context("spawn")
     progress_queue = ctx.Queue()
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_local_worker,
-                               initargs=(progress_queue,))
+                               initargs=(progress_queue, os.getpid()))
     try:
         futures = {pool.submit(run_chunk, cid, chunk, keep_streams): cid for cid, chunk in enumerate(chunks)}
         pending = set(futures)
@@ -139,8 +146,21 @@ def run_local(chunks: list[list[Job]], workers: int, keep_streams: bool, on_prog
                 results = fut.result()
                 on_progress(futures[fut], chunk_seconds(chunks[futures[fut]]))
                 yield results
+    except BaseException:  # interrupted, or the consumer failed or stopped: stop the chunks under way
+        _stop_workers(pool)
+        raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Kill the pool's worker processes (the executor has no public call for it
+    before Python 3.14's terminate_workers)."""
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        try:
+            process.kill()
+        except (OSError, ValueError, AttributeError):
+            pass
 
 
 def _drain(q, on_progress):

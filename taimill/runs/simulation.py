@@ -11,6 +11,7 @@ from taimill.analysis.summary import SummarySink
 from taimill.errors import SimulationUnstable
 from taimill.model.spec import from_preset
 from taimill.physics.runner import Runner
+from taimill.runs.signals import sigterm_interrupts
 from taimill.schema import with_units
 from taimill.store.sinks import FanOut, NullSink
 
@@ -34,22 +35,28 @@ def point_result(preset, spec, summary, runner, b, wall, status) -> dict:
 
 
 def run(preset, sink=None, *, duration: float | None = None, progress=None) -> dict:
-    """Simulate one preset; streams to `sink`; returns the run summary (docs/outputs.md)."""
+    """Simulate one preset; streams to `sink`; returns the run summary (docs/outputs.md).
+    Ctrl-C and SIGTERM (signals.sigterm_interrupts) end it with status "interrupted",
+    any other error with "failed: …"; the sink is finished either way."""
     sink = sink or NullSink()
     spec = from_preset(preset, duration)
     summary, out = start_point(preset, spec, sink)
     t0 = time.perf_counter()
     runner = Runner([spec])
     status = "complete"
-    try:
-        runner.run([out], progress)
-    except SimulationUnstable as err:
-        status = f"unstable: {err}"
-        raise
-    except KeyboardInterrupt:
-        status = "interrupted"
-        raise
-    finally:
-        result = point_result(preset, spec, summary, runner, 0, time.perf_counter() - t0, status)
-        out.finish(result, status)
+    with sigterm_interrupts():
+        try:
+            runner.run([out], progress)
+        except SimulationUnstable as err:
+            status = f"unstable: {err}"
+            raise
+        except KeyboardInterrupt:
+            status = "interrupted"
+            raise
+        except Exception as err:
+            status = f"failed: {err}"
+            raise
+        finally:
+            result = point_result(preset, spec, summary, runner, 0, time.perf_counter() - t0, status)
+            out.finish(result, status)
     return result

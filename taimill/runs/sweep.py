@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 from taimill.errors import ConfigError
 from taimill.runs.executors import Job, chunk_seconds, run_dask, run_local
+from taimill.runs.signals import sigterm_interrupts
 from taimill.analysis.sweep import CURVE_COLUMNS, parabolic_peak, refine_candidates
 from taimill.store.sweep import SweepStore, scalars
 
@@ -188,11 +189,14 @@ def execute(points, store: SweepStore | None, *, batch=None, workers=None, sched
             stream = run_dask(all_chunks, scheduler, keep, prog)
         else:
             stream = run_local(all_chunks, min(workers, len(all_chunks)), keep, prog)
-        for results in stream:
-            for r in results:
-                if store is not None:
-                    store.write_point(r)
-                rows[r.index] = r.summary
+        try:
+            for results in stream:
+                for r in results:
+                    if store is not None:
+                        store.write_point(r)
+                    rows[r.index] = r.summary
+        finally:
+            stream.close()  # a failed write stops the workers now, not at interpreter exit
     if store is None:
         return {i: {"point": i, **scalars(rows[i]), **p["values"]} for i, p in zip(index, points)}
     table = store.table()
@@ -210,7 +214,13 @@ def curve_of(row: dict) -> tuple:
 
 def run_sweep(req: Request, store: SweepStore | None = None, **run_kw) -> tuple[list[dict], list[dict]]:
     """Grid, then `refine_rounds` rounds of refinement per curve; returns (rows in plan
-    order, peaks per curve of the refine metric — empty without refinement)."""
+    order, peaks per curve of the refine metric — empty without refinement). SIGTERM
+    interrupts it like Ctrl-C (signals.sigterm_interrupts); finished points stay stored."""
+    with sigterm_interrupts():
+        return _run_sweep(req, store, **run_kw)
+
+
+def _run_sweep(req: Request, store: SweepStore | None, **run_kw) -> tuple[list[dict], list[dict]]:
     rows = execute(plan(req), store, **run_kw)
     if not req.refine_metric:
         return [rows[i] for i in sorted(rows)], []

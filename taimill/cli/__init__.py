@@ -49,12 +49,12 @@ def main(argv=None) -> int:
         return done.code if isinstance(done.code, int) else EXIT_BAD_INPUT
     try:
         return a.fn(a)
-    except ConfigError as err:
+    except ConfigError as err:  # also StoreError (2) and StoreWriteError (5): taimill.errors
         print(f"taimill: error: {err}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print("taimill: interrupted", file=sys.stderr)
-        return 130
+        return getattr(err, "exit_code", EXIT_BAD_INPUT)
+    except KeyboardInterrupt as err:  # Ctrl-C 130, SIGTERM 143 (taimill.runs.signals)
+        print(f"taimill: {str(err) or 'interrupted'}", file=sys.stderr)
+        return getattr(err, "exit_code", 130)
     except BrokenPipeError:  # `taimill presets | head`: the reader left; nothing to report
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())  # so the interpreter's final flush stays quiet

@@ -65,20 +65,27 @@ def replay(store, sink) -> None:
 
 
 def cmd_record(a) -> int:
+    from taimill.analysis.run import geometry
     from taimill.errors import ConfigError
+    from taimill.store.output import Output
     from taimill.store.run import open_run
 
     check_output(a.rrd, a.overwrite)
     source = _existing(a.run, "RUN.zarr", folder=True)
     try:
         store = open_run(source)
+    except ConfigError:  # StoreError names what is damaged
+        raise
     except Exception as err:  # zarr raises several kinds for a directory that is no store
         raise ConfigError("command line", "RUN.zarr", a.run, f"not a taimill run store ({err})") from None
     if store.config is None or not len(store.frames["time"]):
         raise ConfigError("command line", "RUN.zarr", a.run, "a run store with a config and at least one frame")
+    geometry(store)  # StoreError if its config is not a run's
     from taimill.recording.sink import RerunSink  # rerun is slow to import: after the checks
 
-    replay(store, RerunSink(a.rrd, lab_frame=a.lab_frame, histogram_every=a.histogram_every))
+    with Output(a.rrd, overwrite=a.overwrite, option="--rrd", what="recording") as out:  # locked, swapped in at the end
+        replay(store, RerunSink(out.build, lab_frame=a.lab_frame, histogram_every=a.histogram_every))
+        out.commit()
     print(f"{a.rrd}: {len(store.frames['time'])} frames, {len(store.events['t_start'])} events "
           f"(run status: {store.status}); open it with `taimill view {a.rrd}`")
     return 0

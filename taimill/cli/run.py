@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import sys
-from pathlib import Path
 
 from taimill.cli.common import EXIT_UNSTABLE, add_overrides, overrides, path_text, plain, stderr_console, summary_table
 
@@ -25,40 +24,40 @@ def cmd_run(a) -> int:
     from taimill.model.params import load_preset
 
     preset = load_preset(a.preset, overrides(a))
-    if a.out:  # its folder must exist and be writable (an existing store: see --overwrite below)
+    if a.out:  # its folder must exist and be writable (an existing store: Output refuses it without --overwrite)
         from taimill.model.files import check_output
 
         check_output(a.out, "--out", overwrite=None)
-    if a.out and Path(a.out).exists() and not a.overwrite:
-        from taimill.errors import ConfigError
-
-        raise ConfigError("command line", "--out", a.out, "exists; pass --overwrite to replace it")
     if a.rrd:
         from taimill.cli.record import check_output
 
         check_output(a.rrd, a.overwrite)
     from taimill.runs.simulation import run
+    from taimill.store.output import Outputs
     from taimill.store.sinks import NullSink
 
-    sink = NullSink()
-    if a.out:
-        from taimill.store.run import ZarrSink
+    # each output locked, and one that exists replaced only by a finished run (store/output.py)
+    with Outputs() as outputs:
+        sink = NullSink()
+        if a.out:
+            from taimill.store.run import ZarrSink
 
-        sink = ZarrSink(a.out)
-    if a.rrd:
-        from taimill.recording.sink import RerunSink
-        from taimill.store.sinks import FanOut
+            sink = ZarrSink(outputs.add(a.out, overwrite=a.overwrite, what="run"))
+        if a.rrd:
+            from taimill.recording.sink import RerunSink
+            from taimill.store.sinks import FanOut
 
-        sink = FanOut(sink, RerunSink(a.rrd))
-    show_bar = not a.json or sys.stderr.isatty()
-    try:
-        if show_bar:
-            summary = _run_with_bar(run, preset, sink)
-        else:
-            summary = run(preset, sink)
-    except SimulationUnstable as err:
-        print(f"taimill: {err}" + (f" (everything up to it is in {a.out})" if a.out else ""), file=sys.stderr)
-        return EXIT_UNSTABLE
+            sink = FanOut(sink, RerunSink(outputs.add(a.rrd, overwrite=a.overwrite, option="--rrd", what="recording")))
+        show_bar = not a.json or sys.stderr.isatty()
+        try:
+            if show_bar:
+                summary = _run_with_bar(run, preset, sink)
+            else:
+                summary = run(preset, sink)
+        except SimulationUnstable as err:
+            print(f"taimill: {err}" + (f" ({outputs.kept()})" if outputs.items else ""), file=sys.stderr)
+            return EXIT_UNSTABLE
+        outputs.commit()
     if a.json:
         print(json.dumps(plain(summary)))
     else:

@@ -5,6 +5,7 @@ share of the replicas in each regime at every K)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import sys
@@ -91,7 +92,7 @@ def cmd_sweep(a) -> int:
     from taimill.cli.common import plain as _plain, stderr_console as _stderr_console
     from taimill.schema import with_units
     from taimill.runs.sweep import plan, run_sweep
-    from taimill.store.sweep import SweepStore
+    from taimill.store.sweep import writing
 
     req, run_kw = request(a)
     plan(req)  # every point validated before a store is touched or a kernel runs
@@ -99,17 +100,18 @@ def cmd_sweep(a) -> int:
         from taimill.model.files import check_output
 
         check_output(a.out, "--out", overwrite=None)
-    store = SweepStore.create(a.out, req.identity(), overwrite=a.overwrite) if a.out else None
-    show_bar = not a.json or sys.stderr.isatty()
-    if show_bar:
-        from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+    # locked; an existing store replaced only by a finished sweep (store/sweep.py writing)
+    with writing(a.out, req.identity(), overwrite=a.overwrite) if a.out else contextlib.nullcontext() as store:
+        show_bar = not a.json or sys.stderr.isatty()
+        if show_bar:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
-        with Progress(TextColumn("sweeping"), BarColumn(), TextColumn("{task.completed:.1f}/{task.total:.1f} mill-s"),
-                      TimeRemainingColumn(), transient=True, console=_stderr_console()) as bar:
-            task = bar.add_task("sweep", total=1.0)  # the real total comes with the first report
-            rows, peaks = run_sweep(req, store, progress=lambda d, t: bar.update(task, completed=d, total=t), **run_kw)
-    else:
-        rows, peaks = run_sweep(req, store, **run_kw)
+            with Progress(TextColumn("sweeping"), BarColumn(), TextColumn("{task.completed:.1f}/{task.total:.1f} mill-s"),
+                          TimeRemainingColumn(), transient=True, console=_stderr_console()) as bar:
+                task = bar.add_task("sweep", total=1.0)  # the real total comes with the first report
+                rows, peaks = run_sweep(req, store, progress=lambda d, t: bar.update(task, completed=d, total=t), **run_kw)
+        else:
+            rows, peaks = run_sweep(req, store, **run_kw)
     rows, groups = with_regimes(rows)
     if a.json:
         print(json.dumps([_plain(with_units(r)) for r in rows]))  # each row a summary object with its units

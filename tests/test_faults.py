@@ -213,6 +213,25 @@ def test_a_lock_names_its_holder_and_a_dead_holder_releases_it(tmp_path):
     assert not lock_path(target).exists()
 
 
+@pytest.mark.parametrize("atomic", [True, False], ids=["renameat2", "two renames"])
+def test_a_finished_output_replaces_the_old_one(tmp_path, monkeypatch, atomic):
+    from taimill.store import output
+
+    if not atomic:
+        monkeypatch.setattr(output, "_exchange", lambda a, b: False)
+    for name, make in (("run.zarr", lambda p, text: (p.mkdir(), (p / "zarr.json").write_text(text))),
+                       ("run.rrd", lambda p, text: p.write_text(text))):
+        target = tmp_path / name
+        make(target, "old")
+        with output.Output(target, overwrite=True) as out:
+            assert out.build == tmp_path / name.replace(".", f".partial-{os.getpid()}.")
+            make(out.build, "new")
+            assert (target / "zarr.json" if target.is_dir() else target).read_text() == "old"
+            out.commit()
+        assert (target / "zarr.json" if target.is_dir() else target).read_text() == "new"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.rrd", "run.zarr"]
+
+
 # ---------------------------------------------------------------- sweeps
 def _proc_children(pid: int) -> set[int]:
     """Every living descendant of `pid`, from /proc."""

@@ -81,6 +81,7 @@ class OutputLock:
     def acquire(self) -> "OutputLock":
         while True:
             try:
+                self.file.parent.mkdir(parents=True, exist_ok=True)  # as zarr creates a store's parents
                 fd = os.open(self.file, os.O_RDWR | os.O_CREAT, 0o644)
             except OSError as err:
                 raise StoreWriteError(self.path, "lock", f"cannot create {self.file} ({err.strerror})") from None

@@ -372,8 +372,9 @@ class ZarrSink:
 
 
 def committed_rows(group: zarr.Group, table: str) -> int:
-    """Committed row count (`n_valid`) of a table; 0 if the writer died before creating it."""
-    return int(group[table].attrs.get("n_valid", 0)) if table in group else 0
+    """Committed row count of a table: its `n_valid` and the journal's rows after them;
+    0 if the writer died before creating it. StoreError for a damaged store."""
+    return RunStore(group).check().rows.get(table, 0)
 
 
 def location(group: zarr.Group) -> str:
@@ -656,7 +657,7 @@ def trim_to_valid(path_or_group) -> None:
     for table, columns in layout(0).items():
         if table not in group:
             continue
-        n = committed_rows(group, table)
+        n = int(group[table].attrs.get("n_valid", 0))
         arrays = [group[table][k] for k in columns if k in group[table]]
         for arr in arrays:
             if arr.shape[0] > n:

@@ -107,6 +107,8 @@ TOML_READERS = {
     "sweep --jar": (["sweep", PRESET, "--jar", "{F}"], "jar"),
     "sweep --pair": (["sweep", PRESET, "--pair", "{F}"], "pair"),
     "jars show NAME": (["jars", "show", "{F}", "--out", "{work}/new.png"], "jar"),
+    "export liggghts PRESET": (["export", "liggghts", "{F}", "--out", "{work}/case"], "preset"),
+    "export liggghts --pair": (["export", "liggghts", PRESET, "--pair", "{F}", "--out", "{work}/case"], "pair"),
     "calibrate drop --pair": (["calibrate", "drop", "--pair", "{F}", "--h0", "100"], "pair"),
     "calibrate fit --pair": (["calibrate", "fit", "--pair", "{F}", "--data", TABLE_2_1, "--out", "{work}/new.toml"], "pair"),
     "calibrate sensitivity --pair": (["calibrate", "sensitivity", "--pair", "{F}"], "pair"),
@@ -182,6 +184,20 @@ def _typed_cases():
 
 # (name, argv, words)
 VALUES = [
+    # the LIGGGHTS bridge: the same overrides and output checks as run
+    ("export liggghts --ratio nan", ["export", "liggghts", PRESET, "--ratio", "nan", "--out", "{work}/case"], ["--ratio", "finite"]),
+    ("export liggghts --plate-rpm 0", ["export", "liggghts", PRESET, "--plate-rpm", "0", "--out", "{work}/case"], ["plate_rpm", "undefined"]),
+    ("export liggghts --out empty", ["export", "liggghts", PRESET, "--out", ""], ["--out", "empty"]),
+    ("export liggghts --out unwritable", ["export", "liggghts", PRESET, "--out", "{RO}/case"], ["--out", "not writable"]),
+    ("export liggghts no --out", ["export", "liggghts", PRESET], ["--out", "required"]),
+    ("import liggghts DIR missing", ["import", "liggghts", "{in}/nocase", "--out", "{work}/imp.zarr"], ["DIR", "nocase"]),
+    ("import liggghts DIR not a case", ["import", "liggghts", "{in}", "--out", "{work}/imp.zarr"], ["DIR", "taimill-case.json"]),
+    ("import liggghts --out empty", ["import", "liggghts", "{in}", "--out", ""], ["--out", "empty"]),
+    ("compare one store", ["compare", "{in}/noconfig.zarr"], ["required"]),
+    ("compare --min-un nan", ["compare", "{in}/noconfig.zarr", "{in}/noconfig.zarr", "--min-un", "nan"], ["--min-un", "finite"]),
+    ("compare --min-un negative", ["compare", "{in}/noconfig.zarr", "{in}/noconfig.zarr", "--min-un", "-1"], ["--min-un", "allowed range"]),
+    ("compare --analysis-start negative", ["compare", "{in}/noconfig.zarr", "{in}/noconfig.zarr", "--analysis-start", "-2"],
+     ["--analysis-start", "allowed range"]),
     # the preset overrides of run: each goes through the preset loader's range checks
     ("run --ratio above 10", RUN + ["--ratio", "11"], ["ratio", "11", "[-10, 10]"]),
     ("run --ratio -1e300", RUN + ["--ratio", "-1e300"], ["ratio", "allowed range"]),
@@ -402,11 +418,13 @@ STORES = {"missing": ("{in}/missing.zarr", "no such"), "a file": ("{in}/afile.za
           "an empty folder": ("{in}/empty.zarr", "not a taimill run store"), "a folder of junk": ("{in}/junk.zarr", "not a taimill run store"),
           "a zarr group without config": ("{in}/noconfig.zarr", None), "empty": ("", "empty")}
 STORE_READERS = {"analyse": ["analyse", "{S}"], "report": ["report", "{S}", "--out", "{work}/rep"],
-                 "record": ["record", "{S}", "--rrd", "{work}/new.rrd"]}
+                 "record": ["record", "{S}", "--rrd", "{work}/new.rrd"],
+                 "compare": ["compare", "{S}", "{in}/noconfig.zarr"]}
 
 
 def _store_cases():
-    return [(f"{cmd} RUN: {kind}", [a.replace("{S}", path) for a in argv], [w for w in ("RUN", word) if w])
+    # the line names the store: by its option (RUN, A) or by its path (a damaged store)
+    return [(f"{cmd} RUN: {kind}", [a.replace("{S}", path) for a in argv], [w for w in (Path(path).name[:50], word) if w])
             for cmd, argv in STORE_READERS.items() for kind, (path, word) in STORES.items()]
 
 
@@ -678,6 +696,8 @@ def snapshot(root) -> dict:
 @pytest.fixture(scope="module")
 def no_run_stage():
     """The stages after validation fail the case: Taichi, sweep workers, the viewer."""
+    import taimill.bridge.dumps
+    import taimill.bridge.liggghts
     import taimill.cli.record
     import taimill.physics.runner
     import taimill.runs.sweep
@@ -689,6 +709,8 @@ def no_run_stage():
         mp.setattr(taimill.physics.runner, "init_taichi", reached)
         mp.setattr(taimill.runs.sweep, "run_sweep", reached)
         mp.setattr(taimill.cli.record.subprocess, "call", reached)
+        mp.setattr(taimill.bridge.liggghts, "export_case", reached)
+        mp.setattr(taimill.bridge.dumps, "import_case", reached)
         yield
 
 

@@ -174,3 +174,27 @@ def plain(v):
     if isinstance(v, float) and not math.isfinite(v):
         return None
     return v
+
+
+def open_run_store(path: str, key: str = "RUN"):
+    """A run store named on the command line, opened for reading; anything that is not one
+    (missing, a file, a folder of junk, a store without config, damage: StoreError) is
+    a one-line ConfigError naming `key` and the path."""
+    import os
+
+    from taimill.errors import ConfigError
+    from taimill.store.run import open_run
+
+    if not os.path.exists(path):  # os.path: a name the OS refuses (too long) is no such store either
+        raise ConfigError("command line", key, path, "no such run store (RUN.zarr, written by taimill run --out)")
+    if not os.path.isdir(path):
+        raise ConfigError("command line", key, path, "is a file; need a run store folder (RUN.zarr)")
+    try:
+        store = open_run(path)
+        if not store.config:
+            raise ValueError("no config attribute")
+    except ConfigError:
+        raise
+    except Exception as err:  # zarr raises several kinds for a folder that is no store
+        raise ConfigError("command line", key, path, f"not a taimill run store ({type(err).__name__}: {err})") from None
+    return store

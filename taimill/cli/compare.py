@@ -4,17 +4,17 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
+from taimill.cli.common import number, path_text
 from taimill.model.mechanisms import STRESS_MIN_UN
 
 
 def register(sub) -> None:
     p = sub.add_parser("compare", help="headline figures of two stored runs side by side, relative differences")
-    p.add_argument("a", help="run store A (RUN.zarr)")
-    p.add_argument("b", help="run store B; differences are (B - A)/|A|")
-    p.add_argument("--analysis-start", type=float, help="start of both analysis windows (s; default: each run's)")
-    p.add_argument("--min-un", type=float, default=STRESS_MIN_UN * 1e3,
+    p.add_argument("a", type=path_text, help="run store A (RUN.zarr)")
+    p.add_argument("b", type=path_text, help="run store B; differences are (B - A)/|A|")
+    p.add_argument("--analysis-start", type=number, help="start of both analysis windows (s; default: each run's)")
+    p.add_argument("--min-un", type=number, default=STRESS_MIN_UN * 1e3,
                    help=f"stress events: onset normal speed at least this (mm/s, default {STRESS_MIN_UN * 1e3:g})")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(fn=cmd_compare)
@@ -51,10 +51,15 @@ def cmd_compare(a) -> int:
     from taimill.cli.common import plain
     from taimill.errors import ConfigError
 
-    for key, path in (("A", a.a), ("B", a.b)):
-        if not Path(path).is_dir():
-            raise ConfigError("command line", key, path, "an existing run store directory (RUN.zarr)")
-    result = compare(a.a, a.b, analysis_start=a.analysis_start, min_un=a.min_un * 1e-3)
+    from taimill.cli.common import open_run_store
+    from taimill.cli.report import MAX_MIN_UN_MM_S
+
+    if a.analysis_start is not None and not a.analysis_start >= 0:
+        raise ConfigError("command line", "--analysis-start", a.analysis_start, "allowed range [0, the runs' end) s")
+    if not 0 <= a.min_un <= MAX_MIN_UN_MM_S:
+        raise ConfigError("command line", "--min-un", a.min_un, f"allowed range [0, {MAX_MIN_UN_MM_S:g}] mm/s")
+    stores = [open_run_store(path, key) for key, path in (("A", a.a), ("B", a.b))]
+    result = compare(*stores, analysis_start=a.analysis_start, min_un=a.min_un * 1e-3)
     if a.json:
         print(json.dumps(plain(result)))
     else:

@@ -70,13 +70,13 @@ def cmd_import(a) -> int:
     from taimill.bridge.dumps import import_case
     from taimill.errors import ConfigError
 
+    _check_out(a.out, a.overwrite)
     if not Path(a.case).is_dir():
         raise ConfigError("command line", "DIR", a.case, "an existing case directory (taimill export liggghts --out)")
     from taimill.bridge.liggghts import MANIFEST
 
     if not (Path(a.case) / MANIFEST).is_file():  # before the output is touched
         raise ConfigError("command line", "DIR", a.case, f"not a case exported by `taimill export liggghts` (no {MANIFEST})")
-    _check_out(a.out, a.overwrite)
     summary = import_case(a.case, a.out, dump=a.dump)
     if a.json:
         print(json.dumps(plain(summary)))

@@ -54,20 +54,10 @@ def _check_options(a):
 
 def _open(a):
     from taimill.analysis.run import analyse
-    from taimill.errors import ConfigError
-    from taimill.store.run import open_run
+    from taimill.cli.common import open_run_store
 
     _check_options(a)
-    if not os.path.exists(a.run):  # os.path: a name the OS refuses (too long) is no such store either
-        raise ConfigError("command line", "RUN", a.run, "no such run store (RUN.zarr, written by taimill run --out)")
-    if not os.path.isdir(a.run):
-        raise ConfigError("command line", "RUN", a.run, "is a file; need a run store folder (RUN.zarr)")
-    try:
-        store = open_run(a.run)
-        if not store.config:
-            raise ValueError("no config attribute")
-    except Exception as err:  # zarr raises several kinds for a folder that is no store
-        raise ConfigError("command line", "RUN", a.run, f"not a taimill run store ({type(err).__name__}: {err})") from None
+    store = open_run_store(a.run)
     return analyse(store, analysis_start=a.analysis_start, min_un=a.min_un * 1e-3, sampling_rate=a.sampling_rate)
 
 

@@ -2,6 +2,7 @@
 test` adds the test extra; each has its own stamp, so either works first or after the
 other (checked with `make -n`, which prints the recipe without running it)."""
 
+import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -14,7 +15,11 @@ pytestmark = pytest.mark.skipif(shutil.which("make") is None, reason="needs make
 
 
 def planned(target: str, venv: Path) -> list[str]:
-    res = subprocess.run(["make", "-n", target, f"VENV={venv}"], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    # under `make test` the parent make's variables would make this one print
+    # "Entering/Leaving directory" lines around its plan: run it as a user would
+    env = {k: v for k, v in os.environ.items() if k not in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL", "MAKEOVERRIDES")}
+    res = subprocess.run(["make", "--no-print-directory", "-n", target, f"VENV={venv}"], cwd=ROOT, capture_output=True,
+                         text=True, timeout=60, env=env)
     assert res.returncode == 0, res.stderr
     return res.stdout.splitlines()
 

@@ -424,3 +424,33 @@ def test_a_damaged_sweep_table_is_named(whole_sweep, tmp_path):
     with pytest.raises(StoreError, match="points/p00001: missing"):
         open_sweep(path).point(1)
     assert zarr.open_group(path, mode="r").attrs["kind"] == "sweep"
+
+
+def test_an_interrupt_waits_until_the_launch_reached_every_sink():
+    # SIGTERM arriving while the summary took a launch's events but the store had not
+    # yet: the store then held fewer events than its summary counted and read as
+    # damaged (seen once in the SIGTERM test above). The launch now reaches both, and
+    # the interrupt is raised after its ledger rows, between launches.
+    from taimill.errors import Interrupted
+    from taimill.runs.signals import sigterm_interrupts
+    from taimill.runs.simulation import WholeLaunches
+    from taimill.store.sinks import FanOut, MemorySink
+
+    class SignalledOnEvents(MemorySink):
+        def events(self, block):
+            super().events(block)
+            os.kill(os.getpid(), signal.SIGTERM)  # handled at the next bytecode, here
+
+    first, second = SignalledOnEvents(), MemorySink()
+    out = WholeLaunches(FanOut(first, second))
+    block = {"t": np.zeros(3)}
+    raised = []  # Interrupted is a KeyboardInterrupt: caught here, not left to end pytest
+    with sigterm_interrupts():
+        for name in ("events", "frames", "energy"):
+            try:
+                getattr(out, name)(block)
+            except Interrupted:
+                raised.append(name)
+    assert raised == ["energy"]
+    for sink in (first, second):
+        assert [len(b) for b in (sink._events, sink._frames, sink._energy)] == [1, 1, 1]

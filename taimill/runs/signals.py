@@ -26,23 +26,65 @@ PR_SET_PDEATHSIG = 1
 POLL_SECONDS = 0.5
 
 
+# While a launch's rows are handed to the sinks the interrupt waits (hold/release): a
+# block that reached the run summary but not the store would make the store disagree
+# with its own summary (events counted but never written), which readers call damage.
+_held = {"depth": 0, "pending": None}
+
+
+def _interrupt(err: KeyboardInterrupt) -> None:
+    if _held["depth"]:
+        _held["pending"] = err
+        return
+    raise err
+
+
 def _on_sigterm(signum, frame):
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a second one kills
-    raise Interrupted("terminated (SIGTERM)", EXIT_SIGTERM)
+    _interrupt(Interrupted("terminated (SIGTERM)", EXIT_SIGTERM))
+
+
+def _on_sigint(signum, frame):
+    _interrupt(KeyboardInterrupt())
+
+
+def hold() -> None:
+    """SIGTERM and Ctrl-C wait until the matching `release()` (nested calls count)."""
+    _held["depth"] += 1
+
+
+def release() -> None:
+    """End a hold; an interrupt that arrived during it is raised here."""
+    _held["depth"] = max(0, _held["depth"] - 1)
+    if _held["depth"] == 0 and _held["pending"] is not None:
+        err, _held["pending"] = _held["pending"], None
+        raise err
+
+
+def drop_hold() -> None:
+    """End every hold without raising (the run is finishing anyway)."""
+    _held["depth"], _held["pending"] = 0, None
 
 
 @contextlib.contextmanager
 def sigterm_interrupts():
-    """SIGTERM raises Interrupted inside the block (module doc). Only in the main thread
-    and only where nobody else handles SIGTERM; elsewhere the block runs unchanged."""
-    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
+    """SIGTERM raises Interrupted, and Ctrl-C KeyboardInterrupt, inside the block (module
+    doc), each waiting while a `hold()` lasts. Only in the main thread and only where
+    nobody else handles the signal; elsewhere the block runs unchanged."""
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    signal.signal(signal.SIGTERM, _on_sigterm)
+    ours = {}
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        ours[signal.SIGTERM] = signal.signal(signal.SIGTERM, _on_sigterm)
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        ours[signal.SIGINT] = signal.signal(signal.SIGINT, _on_sigint)
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        for signum, before in ours.items():
+            signal.signal(signum, before)
+        drop_hold()
 
 
 def die_with_parent(parent: int) -> None:

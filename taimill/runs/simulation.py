@@ -11,9 +11,10 @@ from taimill.analysis.summary import SummarySink
 from taimill.errors import SimulationUnstable
 from taimill.model.spec import from_preset
 from taimill.physics.runner import Runner
+from taimill.runs import signals
 from taimill.runs.signals import sigterm_interrupts
 from taimill.schema import with_units
-from taimill.store.sinks import FanOut, NullSink
+from taimill.store.sinks import FanOut, NullSink, Relay
 
 
 def start_point(preset, spec, sink) -> tuple[SummarySink, FanOut]:
@@ -34,6 +35,44 @@ def point_result(preset, spec, summary, runner, b, wall, status) -> dict:
     return with_units(result)
 
 
+class WholeLaunches(Relay):
+    """Hands each launch to the sinks whole: a launch sends its events, then frames, then
+    ledger rows (physics.runner), and SIGTERM or Ctrl-C arriving meanwhile waits until
+    the ledger rows are in (signals.hold), so the store and the summary hold the same
+    launches."""
+
+    def __init__(self, sink):
+        super().__init__(sink)
+        self.holding = False
+
+    def _hold(self):
+        if not self.holding:
+            signals.hold()
+            self.holding = True
+
+    def events(self, block):
+        self._hold()
+        self.sink.events(block)
+
+    def frames(self, block):
+        self._hold()
+        self.sink.frames(block)
+
+    def energy(self, block):
+        self._hold()
+        try:
+            self.sink.energy(block)
+        finally:
+            self.holding = False
+            signals.release()  # an interrupt that waited is raised here, between launches
+
+    def finish(self, summary, status):
+        if self.holding:
+            self.holding = False
+            signals.drop_hold()
+        self.sink.finish(summary, status)
+
+
 def run(preset, sink=None, *, duration: float | None = None, progress=None) -> dict:
     """Simulate one preset; streams to `sink`; returns the run summary (docs/outputs.md).
     Ctrl-C and SIGTERM (signals.sigterm_interrupts) end it with status "interrupted",
@@ -41,6 +80,7 @@ def run(preset, sink=None, *, duration: float | None = None, progress=None) -> d
     sink = sink or NullSink()
     spec = from_preset(preset, duration)
     summary, out = start_point(preset, spec, sink)
+    out = WholeLaunches(out)
     t0 = time.perf_counter()
     runner = Runner([spec])
     status = "complete"

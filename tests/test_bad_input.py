@@ -24,26 +24,13 @@ from pathlib import Path
 
 import pytest
 
+from texts import GOOD_PRESET
+
 ROOT = Path(__file__).resolve().parent.parent
 PRESET = str(ROOT / "presets" / "p4-cy-steel.toml")
 TABLE_2_1 = str(ROOT / "taimill" / "data" / "zirconia_drop_table2_1.csv")
 IS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
 
-GOOD_PRESET = """\
-jar = "CY"
-pair = "steel-steel"
-plate_rpm = 200
-ratio = -2.6
-duration = 1.0
-analysis_start = 0.5
-dt = "auto"
-seed = 1
-
-[balls]
-count = 12
-material = "steel-c1020"
-radius_mm = 6
-"""
 GOOD_JAR = """\
 height_mm = 24.1
 wall_material = "aisi-304"

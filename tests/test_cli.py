@@ -4,13 +4,13 @@ input handled as one-line errors with exit code 2."""
 import json
 import subprocess
 import sys
-import textwrap
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from taimill.store.run import open_run
+from texts import GOOD_PRESET
 
 ROOT = Path(__file__).resolve().parent.parent
 SUMMARY_KEYS = (
@@ -64,21 +64,7 @@ def test_calibrate_drop_prints_restitution():
     assert r["rebound_height"] == pytest.approx(r["e"] ** 2 * 0.5, rel=1e-9)
 
 
-GOOD = textwrap.dedent("""\
-    jar = "CY"
-    pair = "steel-steel"
-    plate_rpm = 200
-    ratio = -2.6
-    duration = 1.0
-    analysis_start = 0.5
-    dt = "auto"
-    seed = 1
-
-    [balls]
-    count = 12
-    material = "steel-c1020"
-    radius_mm = 6
-    """)
+GOOD = GOOD_PRESET
 
 # (name, edit of GOOD, words the message must contain)
 BAD = [

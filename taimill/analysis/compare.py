@@ -10,27 +10,21 @@ import math
 
 from taimill.analysis.run import analyse
 from taimill.model.mechanisms import STRESS_MIN_UN
+from taimill.schema import SUMMARY_ROWS
 
-# (key, label, unit, scale); keys of the event estimator, then of the whole analysis
-HEADLINE = (
-    ("events", "stress events in window", "", 1),
-    ("collision_rate", "stress-event rate", "1/s", 1),
-    ("impact_power", "impact power E_I/τ", "W", 1),
-    ("impact_power_normal", "  normal", "W", 1),
-    ("impact_power_tangential", "  tangential", "W", 1),
-    ("mean_se", "mean stress energy", "mJ", 1e3),
-    ("mean_se_normal", "  normal", "mJ", 1e3),
-    ("mean_se_tangential", "  tangential", "mJ", 1e3),
-    ("mean_se_ball_ball", "  ball-ball", "mJ", 1e3),
-    ("mean_se_ball_wall", "  ball-wall", "mJ", 1e3),
-    ("normal_fraction", "normal / total SE", "", 1),
-    ("randomness_index", "randomness index 1/σ", "", 1),
-    ("side_wall_fraction", "share of ball-frames on the side wall", "", 1),
-    ("flight_fraction", "share of ball-frames in flight", "", 1),
-    ("dissipated_power", "dissipated power", "W", 1),
-    ("energy_balance_error", "energy balance error", "%", 100),
-    ("regime", "motion regime", "", None),
-)
+# (key, label, unit, scale): the run summary's rows (schema.SUMMARY_ROWS) where it has
+# the key, and the few figures only an analysis gives
+_ANALYSIS_ONLY = {
+    "mean_se_ball_ball": ("mean_se_ball_ball", "  ball-ball", "mJ", 1e3),
+    "mean_se_ball_wall": ("mean_se_ball_wall", "  ball-wall", "mJ", 1e3),
+    "side_wall_fraction": ("side_wall_fraction", "share of ball-frames on the side wall", "", 1),
+    "flight_fraction": ("flight_fraction", "share of ball-frames in flight", "", 1),
+}
+_KEYS = ("events", "collision_rate", "impact_power", "impact_power_normal", "impact_power_tangential", "mean_se",
+         "mean_se_normal", "mean_se_tangential", "mean_se_ball_ball", "mean_se_ball_wall", "normal_fraction",
+         "randomness_index", "side_wall_fraction", "flight_fraction", "dissipated_power", "energy_balance_error", "regime")
+_SUMMARY = {row[0]: row for row in SUMMARY_ROWS}
+HEADLINE = tuple(_SUMMARY.get(k) or _ANALYSIS_ONLY[k] for k in _KEYS)
 
 
 def headline(q: dict) -> dict:

@@ -145,7 +145,7 @@ SUMMARY_UNITS: dict[str, str] = {
     "se": "J", "se_n": "J", "se_t": "J", "un": "m/s", "ut": "m/s", "detach_angle_deg": "deg",
     "flight_time": "s",  # single_ball_hit
     # a TUI recording: its span and the live changes made while it ran
-    "recorded": "s", "time": "s", "jar_rpm": "rpm", "ramp_time": "s", "mu_s": "1", "mu_d": "1",
+    "recorded": "s", "time": "s", "jar_rpm": "rpm", "ramp_time": "s", "mu_s": "1", "mu_d": "1", "mu_r": "1",
     # taimill sweep rows: the point and its swept values
     "point": "1", "balls": "1", "seed": "1", "replica": "1", "batch": "1", "duration": "s",
     "plate_radius": "m", "jar_radius": "m", "ball_radius": "m", "regime_fractions": "1", "replicas": "1",

@@ -96,7 +96,7 @@ def test_friction_change_reaches_the_kernel(mill):
     mill.advance(steps=100_000)
     t_off = mill.time
     mill.set_friction(mu_s=0.0, mu_d=0.0)
-    assert (mill.F.mu_s[0], mill.F.mu_d[0]) == (0.0, 0.0)
+    assert (mill.F.mu_s[0, 0], mill.F.mu_d[0, 0]) == (0.0, 0.0)
     mill.advance(steps=150_000)
     t_on = mill.time
     mill.set_friction(pair="steel-steel")

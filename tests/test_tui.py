@@ -89,10 +89,10 @@ async def test_friction_fields_and_pair(mill, tmp_path):
         await enter(pilot, "mu-d", "0.2")
         await enter(pilot, "mu-s", "0.3")
         assert (mill.friction.mu_s, mill.friction.mu_d) == (0.3, 0.2)
-        assert (mill.F.mu_s[0], mill.F.mu_d[0]) == (0.3, 0.2)  # the kernel's data
+        assert (mill.F.mu_s[0, 0], mill.F.mu_d[0, 0]) == (0.3, 0.2)  # the kernel's data
         app.query_one("#pair").value = "steel-graphite"
         await pilot.pause()
-        assert (mill.F.mu_s[0], mill.F.mu_d[0]) == (0.1, 0.08) and value(app, "mu-s") == "0.1"
+        assert (mill.F.mu_s[0, 0], mill.F.mu_d[0, 0]) == (0.1, 0.08) and value(app, "mu-s") == "0.1"
         assert "steel-graphite" in message(app)
 
 
@@ -281,7 +281,7 @@ async def test_mu_s_and_mu_d_are_applied_as_a_pair(mill, tmp_path):
         await pilot.pause()
         await pilot.press("0", ".", "3", "tab", "0", ".", "2", "enter")  # typed in both, one Enter
         await pilot.pause()
-        assert (mill.friction.mu_s, mill.friction.mu_d) == (0.3, 0.2) and (mill.F.mu_s[0], mill.F.mu_d[0]) == (0.3, 0.2)
+        assert (mill.friction.mu_s, mill.friction.mu_d) == (0.3, 0.2) and (mill.F.mu_s[0, 0], mill.F.mu_d[0, 0]) == (0.3, 0.2)
         assert "μ_s = 0.3, μ_d = 0.2" in message(app)
         app.query_one("#mu-d").focus()
         await pilot.pause()

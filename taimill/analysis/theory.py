@@ -11,6 +11,25 @@ def critical_ratio(plate_radius: float, jar_radius: float, ball_radius: float) -
     return -math.sqrt(plate_radius / (jar_radius - ball_radius))
 
 
+def pinning_friction(ratio: float, plate_radius: float, jar_radius: float, ball_radius: float) -> float:
+    """μ_pin: the least friction coefficient that holds one ball at rest on the side
+    wall of a cylindrical jar spinning at K = ratio, gravity aside (docs/regimes.md). At
+    rest in the jar frame at angle δ from the direction away from the plate axis it is
+    pressed by Ω²(R_p cos δ + K²ρ) and pulled along the wall by Ω² R_p sin δ per unit
+    mass (ρ = R_jar − r); the largest ratio over δ is 1/√(a² − 1), a = K²ρ/R_p, at
+    cos δ = −1/a. R_p/(K²ρ) = 1/a, the ratio where the plate's pull is tangential
+    (δ = 90°), is its limit for large |K|. inf inside the critical ratio (a ≤ 1).
+    A ball that can roll is held only if its rolling resistance μ_r reaches μ_pin too."""
+    a = ratio**2 * (jar_radius - ball_radius) / plate_radius
+    return 1.0 / math.sqrt(a * a - 1.0) if a > 1.0 else math.inf
+
+
+def pinning_ratio(mu: float, plate_radius: float, jar_radius: float, ball_radius: float) -> float:
+    """The K < 0 beyond which friction mu holds one ball (the inverse of pinning_friction)."""
+    a = math.sqrt(1.0 + 1.0 / mu**2) if mu > 0 else math.inf
+    return -math.sqrt(a * plate_radius / (jar_radius - ball_radius))
+
+
 def single_ball_hit(plate_radius: float, jar_radius: float, ball_radius: float, plate_omega: float,
                     ratio: float, ball_mass: float) -> dict:
     """Burgio-type energy per hit (Burgio et al. 1991; thesis §1): one ball carried by

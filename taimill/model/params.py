@@ -30,9 +30,12 @@ GRAVITY = 9.81
 MAX_STEPS = 1e10  #: time steps of one run; more would take years of wall time
 
 # The keys of each kind of table (unknown keys are errors, reported with the nearest known one)
-FRICTION_KEYS = ("mu_s", "mu_d", "v_s_mm_s", "v_d_mm_s")
+FRICTION_KEYS = ("mu_s", "mu_d", "v_s_mm_s", "v_d_mm_s", "mu_r")
+# Contact kinds a preset may give its own friction pair and tuning (a coated jar: ball-wall only).
+KINDS = ("ball_ball", "ball_wall")
 PRESET_KEYS = ("jar", "pair", "plate_rpm", "ratio", "jar_rpm", "duration", "analysis_start", "dt", "seed", "law",
-               "initial_positions", "ramp_time", "plate_radius_mm", "gravity", "balls", "outputs", "friction")
+               "initial_positions", "ramp_time", "plate_radius_mm", "gravity", "balls", "outputs", "friction",
+               *(f"pair_{k}" for k in KINDS), *(f"friction_{k}" for k in KINDS))
 BALLS_KEYS = ("count", "material", "radius_mm")
 OUTPUTS_KEYS = ("trajectory_rate",)
 JAR_KEYS = ("height_mm", "wall_material", "description", "fillet_mm", "profile")
@@ -51,13 +54,15 @@ class Material:
 
 @dataclass(frozen=True)
 class Friction:
-    """Regularised Coulomb friction of thesis eq 3.7."""
+    """Regularised Coulomb friction of thesis eq 3.7, and rolling resistance (a
+    constant torque μ_r R_eff F_n against the relative rolling, taimill.model.laws)."""
 
     name: str
     mu_s: float  #: static coefficient
     mu_d: float  #: dynamic coefficient
     v_s: float  #: m/s, μ reaches μ_s
     v_d: float  #: m/s, μ has eased to μ_d
+    mu_r: float = 0.0  #: rolling-resistance coefficient; 0: off (the thesis model)
 
 
 @dataclass(frozen=True)
@@ -136,7 +141,7 @@ class Preset:
     jar: Jar
     balls: Balls
     pair: str
-    friction: Friction
+    friction: Friction  #: of ball-ball contacts
     ball_ball: NormalLaw
     ball_wall: NormalLaw
     drive: Drive  #: Ω, the jar's spin and the start-up ramp
@@ -149,6 +154,12 @@ class Preset:
     trajectory_rate: float  #: Hz
     gravity: float = GRAVITY  #: m/s²
     initial_positions: np.ndarray | None = field(default=None, compare=False, repr=False)
+    wall_friction: Friction | None = None  #: of ball-wall contacts; None: `friction`
+
+    @property
+    def frictions(self) -> tuple[Friction, Friction]:
+        """(ball-ball, ball-wall) friction, in contact-type order."""
+        return self.friction, self.wall_friction or self.friction
 
     def as_dict(self) -> dict:
         """Resolved configuration as plain JSON-able data (for stores and summaries);
@@ -347,7 +358,8 @@ def _friction(t: "_Table", name: str, base: Friction | None = None) -> Friction:
     v_d = t.get("v_d_mm_s", d_vd, lo=0, lo_open=True, hi=1e5) * 1e-3
     if v_d <= v_s:
         raise ConfigError(t.where("v_d_mm_s"), t.key("v_d_mm_s"), v_d * 1e3, f"must exceed v_s_mm_s = {v_s * 1e3:g}")
-    return Friction(name, mu_s, mu_d, v_s, v_d)
+    mu_r = t.get("mu_r", 0.0 if base is None else base.mu_r, **RANGES["mu_r"].bounds)
+    return Friction(name, mu_s, mu_d, v_s, v_d, mu_r)
 
 
 # ------------------------------------------------------------------ jars
@@ -549,6 +561,8 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     if ft is not None:  # the pair's friction, tuned by the user
         friction = _friction(ft, f"{pair} (tuned)", friction)
         ft.done()
+    frictions = [_kind_friction(t, kind, friction, contact, path, pair_base) for kind in KINDS]
+    friction, wall_friction = frictions[0], (frictions[1] if frictions[1] != frictions[0] else None)
     law = t.get("law", None, allowed=laws_np.NAMES)
     ball_ball, ball_wall = _contact_laws(contact, law, balls, jar, source)
 
@@ -576,7 +590,8 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     seed = t.get("seed", 0, kind=int, lo=0, hi=2**63 - 1)
 
     v_max = max_impact_speed(drive.plate_omega, drive.jar_spin, plate_radius, jar, gravity)
-    dt_auto = _auto_dt(ball_ball, ball_wall, v_max)
+    dt_auto = min(_auto_dt(ball_ball, ball_wall, v_max),
+                  laws_np.rolling_dt((friction, wall_friction or friction), balls.inertia, balls.radius, math.inf))
     dt_raw = t.data.get("dt", "auto")
     t.used.add("dt")
     if dt_raw == "auto":
@@ -603,8 +618,26 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     t.done()
     return Preset(
         source, jar, balls, pair, friction, ball_ball, ball_wall, drive, plate_radius,
-        duration, analysis_start, dt, is_auto, seed, rate, gravity, init,
+        duration, analysis_start, dt, is_auto, seed, rate, gravity, init, wall_friction,
     )
+
+
+def _kind_friction(t: _Table, kind: str, friction: Friction, contact: str, path: Path, pair_base: Path) -> Friction:
+    """Friction of one contact kind: `pair_KIND` (a pair of the same contact set)
+    instead of `pair`, then tuned by `[friction_KIND]`; else the preset's friction."""
+    key = f"pair_{kind}"
+    if t.has(key):
+        name = t.get(key, kind=str)
+        base = Path.cwd() if t.where(key) == "command line" else pair_base
+        friction, own = load_friction(name, t.where(key), key, base)
+        if own != contact:
+            raise ConfigError(t.where(key), key, name, f"is for the '{own}' contact set; `pair` uses '{contact}' "
+                              "(the normal laws come from `pair`; pick a pair of the same contact set)")
+    ft = t.table(f"friction_{kind}", required=False, known=FRICTION_KEYS)
+    if ft is not None:
+        friction = _friction(ft, f"{friction.name} ({kind.replace('_', '-')}, tuned)", friction)
+        ft.done()
+    return friction
 
 
 def _check_fill(balls: Balls, jar: Jar, source, radius_source):

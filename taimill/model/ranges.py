@@ -48,5 +48,6 @@ RANGES: dict[str, Range] = {
     "ramp_time": Range(0, None, "s", lo_open=True, live=(0.01, 60.0)),  # a preset's is also ≤ its duration
     "mu_s": Range(0, 10),
     "mu_d": Range(0, 10),
+    "mu_r": Range(0, 10),
     "balls.count": Range(1, 1_000_000, live=(1, 2000)),
 }

@@ -27,7 +27,7 @@ class MillSpec:
     height: float  #: m
     ball_ball: NormalLaw
     ball_wall: NormalLaw
-    friction: Friction
+    friction: Friction  #: of ball-ball contacts
     plate: Ramp  #: Ω(t)
     jar: Ramp  #: w(t), absolute jar spin
     plate_radius: float  #: m
@@ -37,6 +37,12 @@ class MillSpec:
     frame_every: int  #: steps between frames
     stress_min_un: float = STRESS_MIN_UN  #: m/s, impacts start at least this fast
     impact_age: float = IMPACT_AGE  #: s, older contacts are persistent
+    wall_friction: Friction | None = None  #: of ball-wall contacts; None: `friction`
+
+    @property
+    def frictions(self) -> tuple[Friction, Friction]:
+        """(ball-ball, ball-wall) friction, in contact-type order."""
+        return self.friction, self.wall_friction or self.friction
 
     @property
     def n(self):
@@ -80,6 +86,7 @@ def from_preset(p: Preset, duration: float | None = None) -> MillSpec:
         dt=p.dt,
         steps=frames * every + 1,  # the last step taken is a frame step: frames at both ends
         frame_every=every,
+        wall_friction=p.wall_friction,
     )
 
 

@@ -15,7 +15,7 @@ import taichi as ti
 
 from taimill.physics import state as S
 from taimill.physics.frame import wall_velocity_ground
-from taimill.physics.laws import elastic_energy, friction_force, normal_force
+from taimill.physics.laws import elastic_energy, friction_force, normal_force, rolling_torque
 from taimill.physics.walls import wall_sdf
 
 
@@ -23,12 +23,14 @@ from taimill.physics.walls import wall_sdf
 def contact_response(F: ti.template(), b, ct: ti.template(), u, nrm, vrel, m_eff, inv_mass_t, dt):
     """Force on the first body at a contact of type ct (0 ball-ball, 1 ball-wall) with
     overlap u, unit normal nrm (first body → second), relative contact-point velocity
-    vrel. Returns (force, u̇, slip, F_n, normal dissipation, friction dissipation, U)."""
+    vrel. Returns (force, u̇, slip, F_n, normal dissipation, friction dissipation, U).
+    Rolling resistance (if on) is added by the caller, who knows the spins; its work is
+    booked with the friction work (the shear part of the contact's dissipation)."""
     udot = vrel.dot(nrm)
     slip = vrel - udot * nrm
     k, n = F.law_k[b, ct], F.law_n[b, ct]
     fn, fel = normal_force(F.law[b, ct], u, udot, k, n, F.law_c[b, ct], F.law_d[b, ct], m_eff)
-    ft = friction_force(slip, fn, F.mu_s[b], F.mu_d[b], F.v_s[b], F.v_d[b], inv_mass_t, dt)
+    ft = friction_force(slip, fn, F.mu_s[b, ct], F.mu_d[b, ct], F.v_s[b, ct], F.v_d[b, ct], inv_mass_t, dt)
     # Dissipation over the step, (F - F_el) u̇ (damper and clamp) and -F_t · slip
     # (friction), with u̇ and slip at mid-step as this contact's own impulse changes them:
     # start-of-step values overstate it, most for stiff near-stick friction.
@@ -152,6 +154,11 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
         inv_mass_t = (1.0 / mi + 1.0 / mj) + (ai.norm_sqr() * F.inv_i[b, i] + aj.norm_sqr() * F.inv_i[b, j])
         fc, udot, slip, fn, dn, dtf, el = contact_response(F, b, 0, u, nrm, vrel, mi * mj / (mi + mj), inv_mass_t, dt)
         f, tq = fc, ai.cross(fc)
+        if F.mu_r[b, 0] > 0.0:  # off: not computed, runs without it stay bit-identical
+            mr, d_roll = rolling_torque(F.s[b, i] - F.s[b, j], nrm, fn, F.mu_r[b, 0], ri * rj / (ri + rj),
+                                    F.inv_i[b, i] + F.inv_i[b, j], dt)
+            tq += mr
+            dtf += d_roll
         if i < j:
             diss_n, diss_t, stored = dn, dtf, el
             k = partner_slot(F, b, i, j, was_open | seen)
@@ -193,6 +200,11 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
             tq += a.cross(fc)
             p = xi + a
             drive += fc.dot(wall_velocity_ground(p, dr, F.plate_radius[b])) * dt
+            if F.mu_r[b, 1] > 0.0:  # the wall turns with the jar: its torque's power w ẑ·M is drive work
+                mr, d_roll = rolling_torque(si - wz, nrm, fn, F.mu_r[b, 1], ri, F.inv_i[b, i], dt)
+                tq += mr
+                dtf += d_roll
+                drive += mr.dot(wz) * dt
             diss += dn + dtf
             stored += el
             seen |= 1 << wall

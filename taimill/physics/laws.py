@@ -105,3 +105,18 @@ def friction_force(slip, f_n, mu_s, mu_d, v_s, v_d, inv_mass_t, dt):
         mag = ti.min(friction_coefficient(vs, mu_s, mu_d, v_s, v_d) * f_n, vs / (dt * inv_mass_t))
         f = -mag / vs * slip
     return f
+
+
+@ti.func
+def rolling_torque(spin_rel, nrm, f_n, mu_r, r_eff, inv_inertia, dt):
+    """Constant directional rolling-resistance torque on the first body, μ_r R_eff F_n
+    against ω_r = spin_rel without its twist about nrm; its angular impulse in one step
+    never exceeds the one that stops ω_r (inv_inertia = Σ 1/I of both bodies). Returns
+    (torque, energy it dissipates over the step at mid-step ω_r)."""
+    w_r = spin_rel - spin_rel.dot(nrm) * nrm
+    wn = w_r.norm()
+    tq = ti.Vector([0.0, 0.0, 0.0])
+    if wn > 0.0:
+        mag = ti.min(mu_r * r_eff * f_n, wn / (dt * inv_inertia))
+        tq = -mag / wn * w_r
+    return tq, (-tq.dot(w_r) - 0.5 * tq.norm_sqr() * inv_inertia * dt) * dt

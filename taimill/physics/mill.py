@@ -34,7 +34,8 @@ def write_mill(F, b: int, spec: MillSpec):
         F.law_n[b, ct] = law.n
         F.law_c[b, ct] = law.c
         F.law_d[b, ct] = law.d
-    set_friction(F, b, spec.friction)
+    for ct, fr in enumerate(spec.frictions):
+        set_friction(F, b, fr, ct)
     F.n_pieces[b] = len(pieces)
     rows = F.piece.to_numpy()
     rows[b, : len(pieces)] = pieces
@@ -75,6 +76,7 @@ def write_mill(F, b: int, spec: MillSpec):
     F.n_frames[b] = 0
 
 
-def set_friction(F, b: int, fr: Friction):
-    """Friction is live-tunable: it is field data the next step reads."""
-    F.mu_s[b], F.mu_d[b], F.v_s[b], F.v_d[b] = fr.mu_s, fr.mu_d, fr.v_s, fr.v_d
+def set_friction(F, b: int, fr: Friction, ct: int):
+    """Friction of contact type ct (0 ball-ball, 1 ball-wall) is live-tunable: it is
+    field data the next step reads."""
+    F.mu_s[b, ct], F.mu_d[b, ct], F.v_s[b, ct], F.v_d[b, ct], F.mu_r[b, ct] = fr.mu_s, fr.mu_d, fr.v_s, fr.v_d, fr.mu_r

@@ -74,11 +74,12 @@ class Fields:
         self.law_n = ti.field(f64, (B, CONTACT_TYPES))
         self.law_c = ti.field(f64, (B, CONTACT_TYPES))
         self.law_d = ti.field(f64, (B, CONTACT_TYPES))  #: m
-        # friction (eq 3.7), live-tunable [B]
-        self.mu_s = ti.field(f64, B)
-        self.mu_d = ti.field(f64, B)
-        self.v_s = ti.field(f64, B)  #: m/s
-        self.v_d = ti.field(f64, B)  #: m/s
+        # friction (eq 3.7) and rolling resistance per contact type, live-tunable [B, 2]
+        self.mu_s = ti.field(f64, (B, CONTACT_TYPES))
+        self.mu_d = ti.field(f64, (B, CONTACT_TYPES))
+        self.v_s = ti.field(f64, (B, CONTACT_TYPES))  #: m/s
+        self.v_d = ti.field(f64, (B, CONTACT_TYPES))  #: m/s
+        self.mu_r = ti.field(f64, (B, CONTACT_TYPES))  #: 0: no rolling resistance
         # jar profile: boundary pieces, rows of taimill.model.geometry [B, MAX_PIECES]
         self.n_pieces = ti.field(i32, B)
         self.piece = ti.Vector.field(PIECE_COLUMNS, f64, (B, MAX_PIECES))

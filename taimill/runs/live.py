@@ -37,7 +37,7 @@ from taimill.errors import ConfigError, SimulationUnstable
 from taimill.model import laws as laws_np
 from taimill.model.drive import Drive
 from taimill.model.frame import Ramp
-from taimill.model.params import Preset, load_friction, load_preset, max_impact_speed
+from taimill.model.params import KINDS, Preset, load_friction, load_preset, max_impact_speed
 from taimill.model.ranges import RANGES
 from taimill.model.spec import from_preset
 from taimill.physics.mill import set_friction
@@ -51,7 +51,7 @@ CHUNK_SECONDS = 0.01  # wall s per kernel launch (measured: worst UI gap 132 ms 
 # Live value -> its entry in the table of allowed ranges (taimill.model.ranges), which
 # narrows some of them for a running mill.
 LIVE_KEYS = {"plate_rpm": "plate_rpm", "ratio": "ratio", "jar_rpm": "jar_rpm", "mu_s": "mu_s", "mu_d": "mu_d",
-             "ramp_time": "ramp_time", "balls": "balls.count"}
+             "mu_r": "mu_r", "ramp_time": "ramp_time", "balls": "balls.count"}
 LIMITS = {key: RANGES[name].live_bounds for key, name in LIVE_KEYS.items()}  #: key -> [lo, hi]
 
 
@@ -69,7 +69,8 @@ def auto_dt(preset: Preset, plate_omega: float, jar_spin: float, fixed: float | 
     """The preset's time-step rule (params.load_preset) at speeds Ω, w (rad/s): auto dt,
     or a preset's fixed dt (s) where that is still below it."""
     v = max_impact_speed(plate_omega, jar_spin, preset.plate_radius, preset.jar, preset.gravity)
-    dt = laws_np.auto_dt((preset.ball_ball, preset.ball_wall), v)
+    dt = min(laws_np.auto_dt((preset.ball_ball, preset.ball_wall), v),
+             laws_np.rolling_dt(preset.frictions, preset.balls.inertia, preset.balls.radius, math.inf))
     return dt if fixed is None else min(fixed, dt)
 
 
@@ -150,7 +151,13 @@ class LiveMill:
 
     @property
     def friction(self):
+        """Friction of ball-ball contacts."""
         return self.spec.friction
+
+    @property
+    def frictions(self):
+        """(ball-ball, ball-wall) friction."""
+        return self.spec.frictions
 
     def drive(self, t: float | None = None) -> dict:
         """Ω, Ω̇, φ_plate and w, ẇ, φ_jar (rad/s, rad/s², rad) at time t (default now)."""
@@ -305,26 +312,41 @@ class LiveMill:
         self.runner.specs[0] = self.spec.replace(dt=dt, frame_every=every)
         self.preset = dataclasses.replace(self.preset, dt=dt)
 
-    def set_friction(self, mu_s: float | None = None, mu_d: float | None = None, *, pair: str | None = None):
-        """Friction from now on: a pair's coefficients (same contact set as the balls
-        and jar), then μ_s / μ_d if given. μ_d ≤ μ_s."""
-        fr = self.friction
+    def set_friction(self, mu_s: float | None = None, mu_d: float | None = None, *, pair: str | None = None,
+                     mu_r: float | None = None, kind: str | None = None):
+        """Friction from now on, of one contact kind ("ball_ball" or "ball_wall") or of
+        both (kind None): a pair's coefficients (same contact set as the balls and jar),
+        then μ_s / μ_d / μ_r if given. μ_d ≤ μ_s."""
+        if kind is not None and kind not in KINDS:
+            raise ConfigError(SOURCE, "kind", kind, f"must be one of {', '.join(KINDS)} (or both)")
+        base = None
         if pair is not None:
-            fr, contact = load_friction(pair, SOURCE)
+            base, contact = load_friction(pair, SOURCE)
             _, current = load_friction(self.preset.pair, SOURCE)
             if contact != current:
                 raise ConfigError(SOURCE, "pair", pair, f"is for the '{contact}' contact set; these balls and jar use '{current}'")
-        mu_s = check("mu_s", mu_s) if mu_s is not None else fr.mu_s
-        mu_d = check("mu_d", mu_d) if mu_d is not None else fr.mu_d
-        if mu_d > mu_s:
-            raise ConfigError(SOURCE, "mu_d", mu_d, f"dynamic friction must not exceed static mu_s = {mu_s:g}; allowed range [0, {mu_s:g}]")
-        name = fr.name if (mu_s, mu_d) == (fr.mu_s, fr.mu_d) else f"{(pair or self.preset.pair)} (tuned)"
-        fr = dataclasses.replace(fr, name=name, mu_s=mu_s, mu_d=mu_d)
+        new = list(self.frictions)
+        for ct, k in enumerate(KINDS):
+            if kind not in (None, k):
+                continue
+            fr = base or new[ct]
+            s_ = check("mu_s", mu_s) if mu_s is not None else fr.mu_s
+            d_ = check("mu_d", mu_d) if mu_d is not None else fr.mu_d
+            r_ = check("mu_r", mu_r) if mu_r is not None else fr.mu_r
+            if d_ > s_:
+                raise ConfigError(SOURCE, "mu_d", d_, f"dynamic friction must not exceed static mu_s = {s_:g}; allowed range [0, {s_:g}]")
+            name = fr.name if (s_, d_, r_) == (fr.mu_s, fr.mu_d, fr.mu_r) else f"{(pair or self.preset.pair)} (tuned)"
+            new[ct] = dataclasses.replace(fr, name=name, mu_s=s_, mu_d=d_, mu_r=r_)
+        wall = new[1] if new[1] != new[0] else None
         with self._locked():
-            set_friction(self.F, 0, fr)
-            self.runner.specs[0] = self.spec.replace(friction=fr)
-            self.preset = dataclasses.replace(self.preset, friction=fr, pair=pair or self.preset.pair)
-            self.changes.append({"time": self.time, "pair": self.preset.pair, "mu_s": mu_s, "mu_d": mu_d})
+            for ct, fr in enumerate(new):
+                set_friction(self.F, 0, fr, ct)
+            self.runner.specs[0] = self.spec.replace(friction=new[0], wall_friction=wall)
+            self.preset = dataclasses.replace(self.preset, friction=new[0], wall_friction=wall,
+                                              pair=pair if pair is not None and kind is None else self.preset.pair)
+            fr = new[0] if kind is None else new[KINDS.index(kind)]
+            change = {"time": self.time, "pair": self.preset.pair, "mu_s": fr.mu_s, "mu_d": fr.mu_d, "mu_r": fr.mu_r}
+            self.changes.append(change if kind is None else change | {"kind": kind})
 
     def reset(self):
         """Back to t = 0: the seeded placement, ramping from rest to the current targets."""
@@ -346,7 +368,7 @@ class LiveMill:
         d = p.drive
         new = dataclasses.replace(new, drive=d, dt=auto_dt(new, d.plate_omega, d.jar_spin, self.dt_fixed))
         if load_friction(new.pair, SOURCE)[1] == load_friction(p.pair, SOURCE)[1]:
-            new = dataclasses.replace(new, friction=p.friction, pair=p.pair)
+            new = dataclasses.replace(new, friction=p.friction, wall_friction=p.wall_friction, pair=p.pair)
         return new
 
     def restart(self, preset: Preset):

@@ -23,6 +23,7 @@ from textual.worker import get_current_worker
 
 from taimill.analysis.theory import critical_ratio
 from taimill.errors import ConfigError
+from taimill.model.params import KINDS
 from taimill.figures.snapshot import save_png
 from taimill.tui.controls import Controls
 from taimill.tui.help import HelpScreen
@@ -119,8 +120,9 @@ class MillApp(App):
         """The mill's current settings, as the controls show them."""
         m = self.mill
         return {"plate_rpm": m.plate_rpm, "ratio": m.ratio, "jar_rpm": m.jar_rpm, "ramp_time": m.target.ramp_time,
-                "mu_s": m.friction.mu_s, "mu_d": m.friction.mu_d, "balls": m.n_balls, "pair": m.preset.pair,
-                "jar": m.preset.jar.name}
+                "mu_s": m.friction.mu_s, "mu_d": m.friction.mu_d, "mu_r": m.friction.mu_r, "balls": m.n_balls,
+                "pair": m.preset.pair, "jar": m.preset.jar.name,
+                "kinds": {k: {"mu_s": f.mu_s, "mu_d": f.mu_d, "mu_r": f.mu_r} for k, f in zip(KINDS, m.frictions)}}
 
     def _set_jar(self):
         p = self.mill.preset
@@ -210,8 +212,11 @@ class MillApp(App):
 
     def on_friction_requested(self, msg: FrictionRequested):
         m = self.mill
-        self._apply(lambda: m.set_friction(msg.mu_s, msg.mu_d, pair=msg.pair),
-                    lambda: f"friction from t = {m.time:.3f} s: {m.friction.name}, μ_s = {m.friction.mu_s:g}, μ_d = {m.friction.mu_d:g}")
+        which = {None: "", "ball_ball": " of ball-ball contacts", "ball_wall": " of ball-wall contacts"}[msg.kind]
+        fr = lambda: m.frictions[1] if msg.kind == "ball_wall" else m.friction  # noqa: E731 (read after the change)
+        self._apply(lambda: m.set_friction(msg.mu_s, msg.mu_d, pair=msg.pair, mu_r=msg.mu_r, kind=msg.kind),
+                    lambda: (f"friction{which} from t = {m.time:.3f} s: {fr().name}, μ_s = {fr().mu_s:g}, "
+                             f"μ_d = {fr().mu_d:g}, μ_r = {fr().mu_r:g}"))
 
     def on_rebuild_requested(self, msg: RebuildRequested):
         self._message("rebuilding the mill … (more balls than the compiled kernels hold: ≈ 10 s to compile new ones)")

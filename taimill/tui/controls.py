@@ -1,5 +1,6 @@
 """The control panel: plate speed Ω, jar speed as K or ω (the other one shown), ramp
-time, friction (μ_s, μ_d or a material pair), jar and ball count.
+time, friction (μ_s, μ_d, rolling resistance μ_r or a material pair) of both contact
+kinds or of ball-ball or ball-wall contacts alone, jar and ball count.
 
 A field takes effect on Enter, which also leaves it (so letter keys act again); Tab and
 Shift+Tab move between fields, as the panel's hint says. It only parses the number:
@@ -7,7 +8,9 @@ the ranges live in `taimill.runs.live.LIMITS`, checked by the LiveMill (ConfigEr
 naming the field and its range); the input's red border while typing uses the same
 limits. When Ω changes, the jar speed last entered (K or ω) is the one held. μ_s and
 μ_d are applied as a pair (Enter in either sends both fields as typed), so a lower μ_s
-with a lower μ_d is one change, not one refused for μ_d > μ_s.
+with a lower μ_d is one change, not one refused for μ_d > μ_s. The `contact` choice
+says which contacts the friction fields and the pair apply to; the fields show that
+kind's values ("both" shows ball-ball's).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ FIELDS = {
     "ramp-time": ("ramp s", "ramp_time"),
     "mu-s": ("μ_s static", "mu_s"),
     "mu-d": ("μ_d dynamic", "mu_d"),
+    "mu-r": ("μ_r rolling", "mu_r"),
     "balls": ("balls", "balls"),
 }
 
@@ -63,22 +67,34 @@ class Controls(Vertical):
     HINT = ("Tab / Shift+Tab: next / previous\n"
             "Enter: apply and leave the field\n"
             "Esc: leave, keep what runs\n"
-            "μ_s and μ_d apply as a pair")
+            "μ_s and μ_d apply as a pair\n"
+            "contact: which contacts μ applies to")
+    KINDS = (("both", "both"), ("ball-ball", "ball_ball"), ("ball-wall", "ball_wall"))
 
     def __init__(self, values: dict, **kw):
         super().__init__(**kw)
         self.values = values
         self.hold = "ratio" if math.isfinite(values["ratio"]) else "jar_rpm"
+        self.kind = "both"
+
+    def _shown_values(self, values: dict) -> dict:
+        """values with the friction of the chosen contact kind (both: ball-ball's)."""
+        return values | values.get("kinds", {}).get("ball_ball" if self.kind == "both" else self.kind, {})
 
     def compose(self) -> ComposeResult:
         yield Static("Controls", classes="title")
         yield Static(self.HINT, id="hint", classes="hint", markup=False)
+        values = self._shown_values(self.values)
         for fid, (label, key) in FIELDS.items():
             lo, hi = LIMITS[key]
             check = Integer(lo, hi) if key == "balls" else Number(lo, hi)
+            if fid == "mu-s":
+                with Horizontal(classes="row"):
+                    yield Label("contact")
+                    yield Select(self.KINDS, value=self.kind, allow_blank=False, id="kind", compact=True)
             with Horizontal(classes="row"):
                 yield Label(label, id=f"label-{fid}")
-                yield Input(shown(key, self.values[key]), id=fid, validators=[check], select_on_focus=True, compact=True)
+                yield Input(shown(key, values[key]), id=fid, validators=[check], select_on_focus=True, compact=True)
         with Horizontal(classes="row"):
             yield Label("pair")
             yield Select([(p, p) for p in pairs_for(self.values["pair"])], value=self.values["pair"], allow_blank=False, id="pair", compact=True)
@@ -94,8 +110,9 @@ class Controls(Vertical):
         self.values = values
         if self.hold == "ratio" and not math.isfinite(values["ratio"]):
             self.hold = "jar_rpm"
+        shown_values = self._shown_values(values)
         for fid, (_, key) in FIELDS.items():
-            self.query_one(f"#{fid}", Input).value = shown(key, values[key])
+            self.query_one(f"#{fid}", Input).value = shown(key, shown_values[key])
         with self.prevent(Select.Changed):
             self.query_one("#pair", Select).value = values["pair"]
             self.query_one("#jar", Select).value = values["jar"]
@@ -143,13 +160,21 @@ class Controls(Vertical):
             other = "mu-d" if key == "mu_s" else "mu-s"
             pair = self._number(other, self.query_one(f"#{other}", Input).value)
             if pair is not None:
-                self.post_message(FrictionRequested(**{key: value, FIELDS[other][1]: pair}))
+                self.post_message(FrictionRequested(**{key: value, FIELDS[other][1]: pair}, kind=self._kind()))
+        elif key == "mu_r":
+            self.post_message(FrictionRequested(mu_r=value, kind=self._kind()))
         else:
             self.post_message(RebuildRequested(balls=value))
 
+    def _kind(self) -> str | None:
+        return None if self.kind == "both" else self.kind
+
     def on_select_changed(self, event: Select.Changed):
         event.stop()
-        if event.select.id == "pair" and event.value != self.values["pair"]:
-            self.post_message(FrictionRequested(pair=event.value))
+        if event.select.id == "kind":
+            self.kind = event.value
+            self.show(self.values)
+        elif event.select.id == "pair" and event.value != self.values["pair"]:
+            self.post_message(FrictionRequested(pair=event.value, kind=self._kind()))
         elif event.select.id == "jar" and event.value != self.values["jar"]:
             self.post_message(RebuildRequested(jar=event.value))

@@ -30,6 +30,9 @@ and the simulation keeps running with the old one.
   ramp       time (s) a speed change takes (smooth ramp, so the Euler terms stay right)
   μ_s, μ_d   static and dynamic friction (eq 3.7), μ_d ≤ μ_s, applied as a pair: Enter in
              either applies both as typed; or pick a material pair
+  μ_r        rolling resistance: a torque μ_r R F_n against rolling (0: off)
+  contact    which contacts the friction fields and the pair change: both kinds,
+             ball-ball only (coated balls) or ball-wall only (a coated jar)
   jar, balls a new jar or ball count restarts the mill at t = 0
 Readouts are over a sliding window of simulated time; K_c is the single-ball critical
 ratio (docs/model.md). Views: jar frame, from above (red mark: direction away from the plate

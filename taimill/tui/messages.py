@@ -65,9 +65,13 @@ class SpeedsRequested(Message):
 
 @dataclass
 class FrictionRequested(Message):
+    """Friction of both contact kinds (kind None) or of "ball_ball" or "ball_wall" alone."""
+
     mu_s: float | None = None
     mu_d: float | None = None
     pair: str | None = None
+    mu_r: float | None = None
+    kind: str | None = None
 
 
 @dataclass

@@ -123,3 +123,36 @@ class RegimeFeatures:
         votes = [classify(**self._criteria(p)) for p in full]
         return {"regime": label, "regime_confidence": votes.count(label) / len(votes),
                 "regime_criteria": crit, "regime_thresholds": THRESHOLDS}
+
+
+# ---------------------------------------------------------------- regime maps
+# The (K, μ) map tells the two ways a charge can ride the wall apart (docs/regimes.md):
+# a *pinned ring* turns with the jar (its contacts with the side wall barely slip), a
+# *sliding bed* stays near rest in the plate frame while the wall slides under it.
+MAP_REGIMES = ("cascading", "cataracting", "pinned ring", "sliding bed")
+SLIDING_SLIP = 0.1  # slip_ratio at and above which a riding charge is a sliding bed
+
+
+def slip_ratio(row: dict) -> float:
+    """Friction power of the persistent side-wall contacts over what the wall would
+    dissipate sliding at its full speed |K − 1| Ω R (relative to the plate) under every
+    ball pressed by the plate's pull m Ω² R_p: P / (μ_d n m Ω³ R_p R |K − 1|), μ_d the
+    ball-wall dynamic friction. ≈ 0 for a pinned ring, of order 1 for a sliding bed.
+    `row` is a sweep-table row (taimill.runs.sweep.point_values and the flattened
+    summary). inf without wall friction (nothing can pin the charge)."""
+    om = row["plate_rpm"] * math.pi / 30.0
+    mu_d = row.get("mu_d_wall", math.nan)
+    ref = mu_d * row["balls"] * row["ball_mass"] * abs(om) ** 3 * row["plate_radius"] * row["jar_radius"] * abs(row["ratio"] - 1.0)
+    power = row.get("dissipated_power_side_persistent_friction", math.nan)
+    if mu_d == 0.0:
+        return math.inf
+    return power / ref if ref > 0 else math.nan
+
+
+def map_regime(regime: str, slip: float) -> str:
+    """One of MAP_REGIMES: the run's regime, its `rolling` split by the slip ratio."""
+    if regime != "rolling":
+        return regime if regime in MAP_REGIMES else "unknown"
+    if not math.isfinite(slip) and not math.isinf(slip):
+        return "unknown"
+    return "sliding bed" if slip >= SLIDING_SLIP else "pinned ring"

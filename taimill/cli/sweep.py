@@ -33,6 +33,9 @@ def register(subparsers) -> None:
     g.add_argument("--ratio", help="K = ω/Ω + 1 values")
     g.add_argument("--plate-rpm", help="Ω values (rpm)")
     g.add_argument("--pair", help="friction pairs, e.g. steel-steel,steel-fluorite")
+    g.add_argument("--pair-ball-wall", help="ball-wall friction pairs (a coated jar), e.g. steel-fluorite; ball-ball keeps --pair's")
+    g.add_argument("--mu", help="Coulomb friction μ = μ_s = μ_d of the pair (both contact kinds, or ball-ball with --pair-ball-wall)")
+    g.add_argument("--mu-r", help="rolling resistance μ_r of the pair (0: off)")
     g.add_argument("--balls", help="ball counts, e.g. 6,12,24")
     g.add_argument("--jar", help="jars, e.g. CY,HM")
     g.add_argument("--replicas", type=integer, default=1, help="R seeds per point (seed … seed+R-1): mean ± 95%% band")
@@ -51,7 +54,9 @@ def register(subparsers) -> None:
     x.add_argument("--batch", type=integer, help="mills per kernel, B (default: 1 for small sweeps, see sweep.auto_batch)")
     x.add_argument("--scheduler", metavar="ADDRESS", type=name_text, help="dask.distributed scheduler, e.g. tcp://host:8786")
     s.add_argument("--out", type=path_text, help="sweep store to write (SWEEP.zarr); the same command resumes it")
-    s.add_argument("--overwrite", action="store_true", help="replace an existing --out store")
+    s.add_argument("--map", type=path_text, metavar="MAP.png",
+                   help="draw the (K, μ) regime map of the sweep (sweep --ratio and --mu; docs/regimes.md)")
+    s.add_argument("--overwrite", action="store_true", help="replace an existing --out store (and --map figure)")
     s.add_argument("--json", action="store_true", help="print a JSON list of the points' summaries (each with its units) with the swept values and their K's "
                    "regime_fractions and bistable (replicas in different regimes)")
     s.set_defaults(fn=cmd_sweep)
@@ -64,8 +69,9 @@ def request(a):
 
     axes = {}
     for key, opt, kind in (("ratio", "--ratio", float), ("plate_rpm", "--plate-rpm", float), ("pair", "--pair", str),
-                           ("balls.count", "--balls", int), ("jar", "--jar", str)):
-        text = getattr(a, key.replace(".count", "").replace("-", "_"))
+                           ("balls.count", "--balls", int), ("jar", "--jar", str), ("pair_ball_wall", "--pair-ball-wall", str),
+                           ("friction.mu", "--mu", float), ("friction.mu_r", "--mu-r", float)):
+        text = getattr(a, opt[2:].replace("-", "_"))
         if text is not None:
             try:
                 axes[key] = parse_values(text, opt, kind)
@@ -96,10 +102,12 @@ def cmd_sweep(a) -> int:
 
     req, run_kw = request(a)
     plan(req)  # every point validated before a store is touched or a kernel runs
-    if a.out:  # its folder must exist and be writable (an existing store: the store's own rules)
-        from taimill.model.files import check_output
+    from taimill.model.files import check_output
 
+    if a.out:  # its folder must exist and be writable (an existing store: the store's own rules)
         check_output(a.out, "--out", overwrite=None)
+    if a.map:
+        check_output(a.map, "--map", overwrite=a.overwrite, suffixes=(".png", ".svg", ".pdf"))
     # locked; an existing store replaced only by a finished sweep (store/sweep.py writing)
     with writing(a.out, req.identity(), overwrite=a.overwrite) if a.out else contextlib.nullcontext() as store:
         show_bar = not a.json or sys.stderr.isatty()
@@ -113,6 +121,10 @@ def cmd_sweep(a) -> int:
         else:
             rows, peaks = run_sweep(req, store, **run_kw)
     rows, groups = with_regimes(rows)
+    if a.map:
+        from taimill.figures.regime_map import save_regime_map
+
+        save_regime_map(rows, a.map, f"{a.preset}: regimes over K and ball-wall friction μ")
     if a.json:
         print(json.dumps([_plain(with_units(r)) for r in rows]))  # each row a summary object with its units
         for p in peaks:

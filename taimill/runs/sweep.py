@@ -23,7 +23,12 @@ from taimill.analysis.sweep import CURVE_COLUMNS, parabolic_peak, refine_candida
 from taimill.store.sweep import SweepStore, scalars
 
 # Swept preset keys, outermost first (ratio innermost: a chunk holds neighbouring K).
-AXES = ("jar", "balls.count", "pair", "plate_rpm", "ratio")
+# "friction.mu" is one Coulomb coefficient, μ_s = μ_d, of the preset's pair (both contact
+# kinds unless pair_ball_wall is given); "friction.mu_r" its rolling resistance.
+AXES = ("jar", "balls.count", "pair", "pair_ball_wall", "friction.mu", "friction.mu_r", "plate_rpm", "ratio")
+# the table column of each outer axis (refinement finds a combination's curve by them)
+AXIS_COLUMNS = {"jar": "jar", "balls.count": "balls", "pair": "pair_name", "pair_ball_wall": "pair_ball_wall",
+                "friction.mu": "mu", "friction.mu_r": "mu_r", "plate_rpm": "plate_rpm"}
 MAX_POINTS = 10_000
 MAX_AUTO_BATCH = 16
 
@@ -126,16 +131,46 @@ def plan(req: Request, ratios_for=None) -> list[dict]:
             if k is not None:
                 ov.pop("jar_rpm", None)
                 ov["ratio"] = k
+            if "friction.mu" in ov:
+                mu = ov.pop("friction.mu")
+                ov["friction.mu_s"] = ov["friction.mu_d"] = mu
             p = load_preset(req.preset, ov)
             points.append({"overrides": ov, "values": point_values(p, r), "preset": p})
     return points
 
 
 def point_values(p, replica: int) -> dict:
-    """The table's description of a resolved preset (SI radii, rpm)."""
-    return {"jar": p.jar.name, "balls": p.balls.count, "pair": p.pair, "plate_rpm": round(p.drive.plate_rpm, 9),
+    """The table's description of a resolved preset (SI radii, rpm). `pair` tells the
+    curves apart: the preset's pair, and what differs from its own friction."""
+    bb, bw = p.frictions
+    return {"jar": p.jar.name, "balls": p.balls.count, "pair": friction_label(p), "plate_rpm": round(p.drive.plate_rpm, 9),
             "ratio": round(p.drive.ratio, 10), "seed": p.seed, "replica": replica, "plate_radius": p.plate_radius,
-            "jar_radius": p.jar.radius, "ball_radius": p.balls.radius, "duration": p.duration}
+            "ball_mass": p.balls.mass,
+            "jar_radius": p.jar.radius, "ball_radius": p.balls.radius, "duration": p.duration,
+            "mu": bb.mu_s, "mu_d": bb.mu_d, "mu_r": bb.mu_r, "mu_wall": bw.mu_s, "mu_d_wall": bw.mu_d, "mu_r_wall": bw.mu_r,
+            "pair_name": p.pair, "pair_ball_wall": bw.name}
+
+
+def friction_label(p) -> str:
+    """The pair, plus the coefficients where the run's friction differs from the pair's
+    own: ", μ 0.3 μ_r 0.05" (both kinds, or ball-ball), ", wall steel-fluorite" or
+    ", wall μ 0.2" (ball-wall)."""
+    from taimill.model.params import load_friction
+
+    def coefficients(f):
+        return f.mu_s, f.mu_d, f.v_s, f.v_d, f.mu_r
+
+    def text(f):
+        return f"μ {f.mu_s:g}" + (f"/{f.mu_d:g}" if f.mu_d != f.mu_s else "") + (f" μ_r {f.mu_r:g}" if f.mu_r else "")
+
+    own = load_friction(p.pair, "sweep")[0]
+    bb, bw = p.frictions
+    label = p.pair
+    if coefficients(bb) != coefficients(own):
+        label += f", {text(bb)}"
+    if coefficients(bw) != coefficients(bb):
+        label += f", wall {bw.name if 'tuned' not in bw.name else text(bw)}"
+    return label
 
 
 def chunks(jobs: list[Job], batch: int) -> list[list[Job]]:
@@ -257,9 +292,8 @@ def refine(rows: dict, metric: str, rounds: int, evaluate) -> tuple[dict, list[d
 def _fixed_curve(fixed: dict, rows: dict) -> tuple:
     """The curve a `plan` combination of outer axes belongs to (values resolved as in
     the table: the preset's own where the axis is not swept)."""
-    names = {"jar": "jar", "balls.count": "balls", "pair": "pair", "plate_rpm": "plate_rpm"}
     for r in rows.values():
-        if all(_same(r[names[k]], v) for k, v in fixed.items()):
+        if all(_same(r.get(AXIS_COLUMNS[k], r.get(k)), v) for k, v in fixed.items()):
             return curve_of(r)
     return ()
 

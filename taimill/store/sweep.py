@@ -238,9 +238,13 @@ def open_sweep(path, mode: str = "r") -> SweepStore:
 
 
 def scalars(summary: dict) -> dict:
-    """The summary's scalar entries (int, float, str), for the table."""
+    """The summary's scalar entries (int, float, str), for the table, plus the
+    dissipation by mechanism as dissipated_power_KIND_CLASS_PART (W) and the regime
+    criteria (regime maps read them)."""
     out = {}
-    for k, v in summary.items():
+    flat = {f"dissipated_power_{k}_{c}_{p}": w for k, cls in summary.get("dissipation_by_mechanism", {}).items()
+            for c, parts in cls.items() for p, w in parts.items()}
+    for k, v in (summary | flat | summary.get("regime_criteria", {})).items():
         if isinstance(v, bool) or v is None:
             continue
         if isinstance(v, (int, np.integer)):

@@ -1,0 +1,63 @@
+"""Regime maps (docs/regimes.md): the slip ratio that splits a riding charge into a
+pinned ring and a sliding bed, and the (K, μ) figure with its analytic boundaries."""
+
+import math
+
+import numpy as np
+import pytest
+
+from taimill.analysis.regime import SLIDING_SLIP, map_regime, slip_ratio
+from taimill.analysis.theory import critical_ratio, pinning_friction, pinning_ratio
+from taimill.figures.regime_map import map_cells, regime_map
+
+GEOMETRY = {"plate_radius": 0.125, "jar_radius": 0.0325, "ball_radius": 0.006, "balls": 12, "ball_mass": 7.1e-3,
+            "plate_rpm": 200.0}
+
+
+def _ref(K, mu_d):
+    om = 200 * math.pi / 30
+    return mu_d * 12 * 7.1e-3 * om**3 * 0.125 * 0.0325 * abs(K - 1)
+
+
+def test_slip_ratio_is_the_share_of_full_sliding_friction_power():
+    row = GEOMETRY | {"ratio": -3.0, "mu_d_wall": 0.2, "dissipated_power_side_persistent_friction": 0.5 * _ref(-3.0, 0.2)}
+    assert slip_ratio(row) == pytest.approx(0.5)
+    assert map_regime("rolling", 0.5) == "sliding bed"
+    assert map_regime("rolling", 0.1 * SLIDING_SLIP) == "pinned ring"
+    assert map_regime("cataracting", 0.5) == "cataracting"
+    assert math.isinf(slip_ratio(row | {"mu_d_wall": 0.0}))  # nothing holds a frictionless charge
+    assert map_regime("rolling", math.inf) == "sliding bed"
+
+
+def test_pinning_ratio_inverts_pinning_friction():
+    for mu in (0.05, 0.25, 1.0):
+        k = pinning_ratio(mu, 0.125, 0.0325, 0.006)
+        assert k < critical_ratio(0.125, 0.0325, 0.006)
+        assert pinning_friction(k, 0.125, 0.0325, 0.006) == pytest.approx(mu)
+
+
+def test_regime_map_colours_cells_and_draws_the_boundaries():
+    rows = []
+    for K in (0.0, -2.0, -3.0, -4.0):
+        for mu in (0.05, 0.25, 1.0):
+            pinned = mu >= pinning_friction(K, 0.125, 0.0325, 0.006)
+            regime = "cascading" if K == 0 else "cataracting" if K == -2.0 else "rolling"
+            for rep in range(2):
+                rows.append(GEOMETRY | {"ratio": K, "mu": mu, "mu_wall": mu, "mu_d_wall": mu, "mu_r": 0.0, "regime": regime,
+                                        "impact_power": 1.0 + abs(K) * mu, "dissipated_power_ball_ball_persistent_friction": 0.1,
+                                        "dissipated_power_side_persistent_friction": (0.001 if pinned else 0.5) * _ref(K, mu)})
+    cells = map_cells(rows)
+    assert len(cells) == 12
+    assert cells[(0.0, -4.0, 1.0)]["regime"] == "pinned ring"
+    assert cells[(0.0, -3.0, 0.05)]["regime"] == "sliding bed"
+    assert cells[(0.0, -2.0, 0.25)]["regime"] == "cataracting"
+    fig = regime_map(rows, "test")
+    ax = fig.axes[0]
+    labels = [line.get_label() for line in ax.get_lines()]
+    assert any(lab.startswith("μ_pin") for lab in labels) and any(lab.startswith("K_c") for lab in labels)
+    kc = [line for line in ax.get_lines() if line.get_label().startswith("K_c")][0]
+    assert kc.get_xdata()[0] == pytest.approx(critical_ratio(0.125, 0.0325, 0.006))
+    mu_line = [line for line in ax.get_lines() if line.get_label().startswith("μ_pin")][0]
+    k, mu = mu_line.get_xdata(), mu_line.get_ydata()
+    np.testing.assert_allclose(mu, [pinning_friction(x, 0.125, 0.0325, 0.006) for x in k])
+    assert ax.get_xlim()[0] > ax.get_xlim()[1]  # K falls to the right

@@ -19,6 +19,7 @@ from taimill.analysis.theory import critical_ratio, pinning_friction
 
 COLOURS = {"cascading": "#9ecae1", "cataracting": "#fdae6b", "pinned ring": "#74c476", "sliding bed": "#bcbddc",
            "unknown": "#ffffff"}
+MIN_POWER = 1e-3  #: W, contours start a decade above it
 PERSISTENT_FRICTION = tuple(f"dissipated_power_{k}_persistent_friction" for k in ("ball_ball", "side", "floor", "lid"))
 
 
@@ -84,9 +85,13 @@ def regime_map(rows: list[dict], title: str = ""):
             for z, style, colour, label in ((pi, "-", "k", "stress-event power"), (pf, "--", "#7f2704", "persistent friction power")):
                 ok = np.isfinite(z) & (z > 0)
                 if ok.sum() >= 4 and z[ok].max() / z[ok].min() > 1.5:
-                    levels = np.unique(np.round(np.geomspace(z[ok].min(), z[ok].max(), 5)[1:-1], 3))
-                    cs = ax.contour(kk, mm, np.where(ok, z, np.nan), levels=levels, colors=colour, linestyles=style, linewidths=1)
-                    ax.clabel(cs, fmt=lambda v: f"{v:.3g} W", fontsize=7)
+                    # decades from 10 mW up, contoured in log10: below 10 mW (creeping contacts,
+                    # no contact at all) the power is lumped, so noise there draws no lines
+                    lz = np.log10(np.maximum(np.where(ok, z, 0.0), MIN_POWER))
+                    levels = [v for v in np.arange(math.log10(MIN_POWER) + 1, np.ceil(lz.max()) + 1) if lz.min() < v < lz.max()]
+                    if levels:
+                        cs = ax.contour(kk, mm, lz, levels=levels, colors=colour, linestyles=style, linewidths=1)
+                        ax.clabel(cs, fmt=lambda v: f"{10 ** v:.2g} W", fontsize=7)
         kc = critical_ratio(Rp, R, r)
         kline = np.linspace(min(ks.min(), kc) - 0.05, kc - 1e-3, 200)
         ax.plot(kline, [pinning_friction(k, Rp, R, r) for k in kline], "k-", lw=2, label="μ_pin(K): one ball held (cannot roll)")

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from taimill.model import files, geometry
+from taimill.model.overlap import first_overlap
 from taimill.model.drive import Drive
 from taimill.errors import ConfigError
 from taimill.model.ranges import RANGES
@@ -678,7 +679,8 @@ def load_positions(name: str, base: Path, balls: Balls, jar: Jar, source) -> np.
     phi, _ = geometry.profile_sdf(jar.profile, x[:, :2])
     if (phi < r).any() or (x[:, 2] < r).any() or (x[:, 2] > jar.height - r).any():
         raise ConfigError(source, "initial_positions", name, "a ball is not fully inside the jar")
-    gaps = np.linalg.norm(x[:, None] - x[None], axis=-1) + np.eye(len(x)) * 1e9
-    if (gaps < 2 * r).any():
-        raise ConfigError(source, "initial_positions", name, "two balls overlap")
+    pair = first_overlap(x, r)
+    if pair is not None:
+        i, j = pair
+        raise ConfigError(source, "initial_positions", name, f"balls {i} and {j} overlap (rows {i + 1} and {j + 1})")
     return x

@@ -12,6 +12,8 @@ from taimill.analysis.rungeometry import FLOOR, LID, SIDE, RunGeometry, accessib
 
 G_BINS = 20
 
+MAX_CELLS = 256  # wall-map cells across the jar's diameter or height at most
+
 
 class RadialDensity:
     """g(r), eq 3.9: the time-averaged density of ball centres in cylindrical shells
@@ -63,7 +65,9 @@ class WallMap:
 
     def __init__(self, g: RunGeometry, t0: float = 0.0, cell: float | None = None):
         self.geom, self.t0 = g, t0
-        cell = cell or max(g.ball_radius / 3.0, 1e-4)
+        # a third of a ball radius, but at most MAX_CELLS across the jar (small beads in a
+        # large jar: a finer map is unreadable and its set-up grows with the cell count)
+        cell = cell or max(g.ball_radius / 3.0, 1e-4, 2.0 * g.jar_radius / MAX_CELLS, g.height / MAX_CELLS)
         ns = max(8, int(round(g.perimeter / cell)))
         nz = max(2, int(round(g.height / cell)))
         self.s_edges = np.linspace(0.0, g.perimeter, ns + 1)
@@ -145,10 +149,13 @@ def _inside_area(g: RunGeometry, edges: np.ndarray, sub: int = 6) -> np.ndarray:
     """Area (m²) of each square cell of the floor/lid grid inside the jar profile."""
     n, h = len(edges) - 1, edges[1] - edges[0]
     u = (np.arange(n * sub) + 0.5) * h / sub + edges[0]
-    xx, yy = np.meshgrid(u, u, indexing="ij")
-    phi, _ = g.sdf(np.column_stack([xx.ravel(), yy.ravel()]))
-    inside = (phi >= 0).reshape(n, sub, n, sub)
-    return inside.sum(axis=(1, 3)) * (h / sub) ** 2
+    counts = np.zeros((n, n))
+    rows = max(1, (1 << 16) // (n * sub * sub))  # cell rows per SDF call: bounded memory
+    for a in range(0, n, rows):
+        xx, yy = np.meshgrid(u[a * sub:(a + rows) * sub], u, indexing="ij")
+        phi, _ = g.sdf(np.column_stack([xx.ravel(), yy.ravel()]))
+        counts[a:a + rows] = (phi >= 0).reshape(-1, sub, n, sub).sum(axis=(1, 3))
+    return counts * (h / sub) ** 2
 
 
 def contact_map(g: RunGeometry, events: dict, t0: float = 0.0) -> dict:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-CHUNK = 1 << 18  # balls per chunk of pair building (≈ 40 candidate pairs each)
+CHUNK = 1 << 15  # balls per chunk of pair building (≈ 20 candidate pairs each: ≈ 30 MB of arrays)
 
 # the cell itself and the 13 forward neighbours: each unordered cell pair once
 _OFFSETS = [(dx, dy, dz) for dz in (-1, 0, 1) for dy in (-1, 0, 1) for dx in (-1, 0, 1)

@@ -56,23 +56,38 @@ def lattice_placement(count, radius, profile: Profile, height, seed, source="pre
     """A seeded random subset of a hexagonal close packing of pitch 2r + GAP inside the
     jar (also the fallback when random addition jams: 24 balls in the 24.1 mm CY jar
     need the staggered layers)."""
-    a = 2 * radius + GAP
+    pts = close_packing(radius, profile, height, GAP)
+    if len(pts) < count:
+        raise ConfigError(source, "balls.count", count, f"at most {len(pts)} balls fit in the jar at the start")
+    pick = np.sort(np.random.default_rng(seed).choice(len(pts), count, replace=False))
+    return pts[pick]
+
+
+def bed_placement(count, radius, profile: Profile, height, gap=GAP, source="preset"):
+    """The lowest `count` sites of a hexagonal close packing of pitch 2r + gap: a
+    dense bed on the floor (a compressed bed with a gap of a few nm; benchmarks)."""
+    pts = close_packing(radius, profile, height, gap)
+    if len(pts) < count:
+        raise ConfigError(source, "balls.count", count, f"at most {len(pts)} balls fit in the jar as a bed")
+    return pts[:count]  # layer by layer from the floor
+
+
+def close_packing(radius, profile: Profile, height, gap):
+    """Sites of a hexagonal close packing of pitch 2r + gap inside the jar, layer by
+    layer from the floor, each ball `gap` clear of the walls."""
+    a = 2 * radius + gap
     dz = a * np.sqrt(2.0 / 3.0)
     R = profile.bounding_radius
     i, j = np.meshgrid(np.arange(-int(R / a) - 2, int(R / a) + 3), np.arange(-int(R / a) - 3, int(R / a) + 4))
     base = np.column_stack([(i + 0.5 * (j % 2)).ravel() * a, j.ravel() * a * np.sqrt(3) / 2])
     layers = []
-    z = radius + GAP
+    z = radius + gap
     k = 0
-    while z <= height - radius - GAP + 1e-12:
+    while z <= height - radius - gap + 1e-12:
         shift = np.array([0.5 * a, a / (2 * np.sqrt(3))]) * (k % 2)
         xy = base + shift
         layers.append(np.column_stack([xy, np.full(len(xy), z)]))
         z += dz
         k += 1
     pts = np.vstack(layers) if layers else np.zeros((0, 3))
-    pts = pts[profile_sdf(profile, pts[:, :2])[0] >= radius + GAP]
-    if len(pts) < count:
-        raise ConfigError(source, "balls.count", count, f"at most {len(pts)} balls fit in the jar at the start")
-    pick = np.sort(np.random.default_rng(seed).choice(len(pts), count, replace=False))
-    return pts[pick]
+    return pts[profile_sdf(profile, pts[:, :2])[0] >= radius + gap]

@@ -186,12 +186,17 @@ class Engine:
 
     Each mill's ball rows are padded to a multiple of BALL_PAD so that two mills never
     share a cache line: unpadded 12-ball mills on two threads ran 2-4x slower than one.
-    Output buffers are sized to about BUFFER_BYTES per mill.
+    Output buffers are sized to about BUFFER_BYTES per mill. In parallel mode (10⁵-10⁶
+    balls) they are bounded by LARGE_FRAME_BYTES and LARGE_EVENT_BYTES instead of
+    growing with N: the launcher drains after every launch, and a launch stops at a
+    full frame buffer (one frame of 10⁶ balls is 72 MB).
     """
 
     BALL_PAD = 8  # f64 × 8 = 64 B
     BUFFER_BYTES = 64 << 20
     EVENT_ROWS = 1 << 14  # event buffer rows at least (×120 B)
+    LARGE_FRAME_BYTES = 16 << 20  # frames buffered in parallel mode (at least one)
+    LARGE_EVENT_BYTES = 32 << 20  # events buffered in parallel mode, half of them the per-step margin
 
     def __init__(self, batch, balls, *, mode="fused", use_grid=True, grid_cells=1, frame_capacity=256):
         if mode == "parallel" and batch != 1:
@@ -204,6 +209,10 @@ class Engine:
         # dozen-ball mill) so a launch rarely stops early for a full buffer
         events = max(2 * self.margin, self.EVENT_ROWS)
         frames = int(max(4, min(frame_capacity, self.BUFFER_BYTES // (72 * n))))
+        if mode == "parallel":  # a step that closes more events than the margin raises (drain)
+            events = max(self.EVENT_ROWS, min(events, self.LARGE_EVENT_BYTES // (8 * S.NCOL)))
+            self.margin = min(self.margin, events // 2)
+            frames = int(max(1, min(frame_capacity, self.LARGE_FRAME_BYTES // (72 * n))))
         self.F = S.Fields(batch, n, events, frames, grid_cells)
 
     @property

@@ -104,8 +104,8 @@ class Runner:
         if mode == "fused":
             steps = max(10_000, int(LAUNCH_SECONDS / min(s.dt for s in specs)))
             self.steps_per_launch = max(1, min(steps, room))
-        else:
-            self.steps_per_launch = max(1, min(room, 1000))
+        else:  # a launch also ends at a full frame buffer (Engine: a byte budget, ≥ 1 frame)
+            self.steps_per_launch = 1000
         for b, spec in enumerate(specs):
             write_mill(self.engine.F, b, spec)
 

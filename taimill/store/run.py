@@ -2,7 +2,8 @@
 
 Layout of one run group (docs/outputs.md):
 
-    attrs: schema_version, config, n_balls, radii (m), status, summary, analysis_window (s)
+    attrs: schema_version, config, n_balls, status, summary, analysis_window (s)
+    radii        (N,) ball radii, m (schema 2 and older: attrs.radii)
     trajectory/  time (F,) s; position, velocity, spin (F, N, 3) m, m/s, rad/s
     events/      one 1-D array per `EVENT_COLUMNS` entry
     energy/      one 1-D array per `ENERGY_COLUMNS` entry
@@ -52,7 +53,8 @@ from taimill.errors import StoreError, StoreWriteError
 from taimill.schema import (DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_COLUMNS, MECHANISM_COLUMNS, PER_BALL,
                             VELOCITY_CONVENTION)
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
+FRAME_CHUNK_BYTES = 16 << 20  # trajectory chunks hold at most this many bytes per array (≥ 1 frame)
 # Columns a version-1 store lacks (read as absent from such a store): the frame's
 # drive and the dissipation by mechanism.
 ADDED_IN_2 = frozenset(DRIVE_FIELDS) | frozenset(MECHANISM_COLUMNS)
@@ -218,7 +220,8 @@ class ZarrSink:
     `path_or_group`: a path is opened with mode "w" (a fresh run overwrites it); a
     `zarr.Group` (e.g. one subgroup per sweep point) gets the run's tables, replacing any
     it held. `frame_chunk` rows per chunk for trajectory and energy, `event_chunk` for
-    events. Rows reach the disk when a chunk fills, when a ledger block brings the
+    events; a trajectory chunk holds at most FRAME_CHUNK_BYTES per array (a frame of
+    10⁵ balls is 2.4 MB: a 1024-frame chunk would be written whole at every commit). Rows reach the disk when a chunk fills, when a ledger block brings the
     simulated time `commit_every` seconds past the last commit (every table is then
     committed), on `flush()` and on `finish`. An OSError while writing (a full disk)
     raises `StoreWriteError`; `finish` after it only tries to record the status."""
@@ -262,14 +265,18 @@ class ZarrSink:
                     "schema_version": SCHEMA_VERSION,
                     "config": plain(config),
                     "n_balls": int(n_balls),
-                    "radii": radii.tolist(),
                     "status": "running",
                     "conventions": VELOCITY_CONVENTION,
                 }
             )
+        with self._writing("radii"):
+            self.group.create_array("radii", data=radii, overwrite=True, dimension_names=("ball",),
+                                    attributes={"units": "m", "description": "ball radii"})
+        chunks = dict(self.chunks)
+        chunks["trajectory"] = max(1, min(chunks["trajectory"], FRAME_CHUNK_BYTES // (24 * max(1, n_balls))))
         for name, columns in layout(n_balls).items():
             with self._writing(name):
-                self.tables[name] = _TableWriter(self.group, name, columns, self.chunks[name])
+                self.tables[name] = _TableWriter(self.group, name, columns, chunks[name])
         self.journaled = {name: 0 for name in self.tables}
         with self._writing(JOURNAL):
             if JOURNAL in self.group:  # a group reused for a new run
@@ -453,10 +460,13 @@ class RunStore:
                 self._bad(f"attrs.{key}", f"{_short(v)} is not a {kind.__name__}")
         if self.n_balls < 0:
             self._bad("attrs.n_balls", f"{self.n_balls} is negative")
-        radii = self.attrs.get("radii", [])
-        if len(radii) != self.n_balls or not all(isinstance(r, (int, float)) and not isinstance(r, bool)
-                                                  and math.isfinite(r) and r > 0 for r in radii):
-            self._bad("attrs.radii", f"{_short(radii)} is not {self.n_balls} positive radii (m)")
+        part = "radii" if "radii" in self.group else "attrs.radii"
+        try:
+            radii = self.radii
+        except Exception as err:
+            self._bad(part, f"unreadable ({why(err)})")
+        if radii.shape != (self.n_balls,) or not (np.isfinite(radii) & (radii > 0)).all():
+            self._bad(part, f"{_short(radii.tolist())} is not {self.n_balls} positive radii (m)")
         window = self.analysis_window
         if window is not None and (len(window) != 2 or not all(isinstance(x, (int, float)) for x in window)):
             self._bad("attrs.analysis_window", f"{_short(window)} is not [start, end] (s)")
@@ -596,8 +606,13 @@ class RunStore:
 
     @property
     def radii(self) -> np.ndarray:
-        """Ball radii (m)."""
-        return np.asarray(self.attrs.get("radii", []), dtype=float)
+        """Ball radii (m): the `radii` array (schema 2 and older: attrs.radii)."""
+        if "radii" in self.group:
+            return np.asarray(self.group["radii"][:], dtype=float)
+        radii = self.attrs.get("radii", [])
+        if not isinstance(radii, list) or not all(isinstance(r, (int, float)) and not isinstance(r, bool) for r in radii):
+            raise ValueError(f"{_short(radii)} is not a list of numbers")
+        return np.asarray(radii, dtype=float)
 
     @cached_property
     def frames(self) -> dict[str, np.ndarray]:

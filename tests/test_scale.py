@@ -1,7 +1,11 @@
 """Small media at scale: the set-up path is O(N) (grid-hashed overlap checks and
 placement) and still exact."""
 
+import json
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,6 +15,7 @@ from taimill.model.overlap import first_overlap, overlapping_pairs
 from taimill.model.params import load_preset
 from taimill.model.placement import lattice_placement
 from taimill.model.geometry import build_profile
+from taimill.store.run import open_run
 
 
 def brute_pairs(x, r):
@@ -71,3 +76,25 @@ def test_initial_positions_of_a_hundred_thousand_balls_load_in_seconds(tmp_path)
     np.savez(tmp_path / "start.npz", positions=x)
     with pytest.raises(ConfigError, match="overlap"):
         load_preset(tmp_path / "p.toml")
+
+
+@pytest.mark.parametrize("name", ["p4-zr80-beads-1mm", "p4-zr500-beads-3mm"])
+def test_small_media_presets_run_via_the_cli(name, tmp_path):
+    # ≈ 250 steps (frames every 125 steps: a run lasts whole frame intervals): set-up,
+    # the engine, the store and the summary end to end
+    ROOT = Path(__file__).resolve().parent.parent
+    text = (ROOT / "presets" / f"{name}.toml").read_text().replace("trajectory_rate = 50", "trajectory_rate = 1")
+    preset = load_preset(ROOT / "presets" / f"{name}.toml")
+    rate = 1.0 / (125 * preset.dt)
+    (tmp_path / "p.toml").write_text(text.replace("trajectory_rate = 1", f"trajectory_rate = {rate!r}"))
+    out = tmp_path / "run.zarr"
+    res = subprocess.run([sys.executable, "-m", "taimill", "run", str(tmp_path / "p.toml"),
+                          "--duration", str(250 * preset.dt), "--out", str(out), "--json"],
+                         capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert res.returncode == 0, res.stderr[-2000:]
+    summary = json.loads(res.stdout)
+    assert summary["status"] == "complete" and summary["steps"] >= 250
+    store = open_run(out)
+    x = store.frames["position"]
+    assert x.shape[1] == preset.balls.count and np.isfinite(x).all()
+    assert store.radii.shape == (preset.balls.count,)

@@ -17,6 +17,7 @@ from textual.widget import Widget
 from taimill.tui.braille import Plane, cells, to_text
 
 COLOURS = (None, "grey70", "yellow", "red")  # empty, wall, ball, mark (topmost wins)
+MAX_DRAWN = 20_000  # balls drawn per view at most (a stride sample beyond)
 
 
 class JarView(Widget):
@@ -32,6 +33,7 @@ class JarView(Widget):
         self.outline = None
         self.height_m = 0.0
         self.position = np.zeros((0, 3))
+        self.sample = 1  #: every sample-th ball is drawn
         self.radius = np.zeros(0)
         self.psi = None
         self.drawn = 0  #: frames drawn (the app's frame-rate meter)
@@ -49,7 +51,11 @@ class JarView(Widget):
         self.refresh()
 
     def show(self, position: np.ndarray, psi: float | None = None):
-        self.position, self.psi = position, psi
+        """Draw the balls at `position` (N, 3), m; beyond MAX_DRAWN balls a fixed sample
+        (every k-th ball, the same ones every frame) keeps the view responsive."""
+        step = -(-len(position) // MAX_DRAWN)
+        self.position, self.psi = position[::step] if step > 1 else position, psi
+        self.sample = max(step, 1)
         self._strips = None
         self.refresh()
 
@@ -81,7 +87,7 @@ class JarView(Widget):
         balls, mark = plane.blank(), plane.blank()
         axes = (0, 1) if self.view == "top" else (0, 2)
         if len(self.position):
-            plane.discs(balls, self.position[:, axes], self.radius[: len(self.position)])
+            plane.discs(balls, self.position[:, axes], self.radius[:: self.sample][: len(self.position)])
         if self.view == "top" and self.psi is not None:
             plane.plot(mark, np.outer(np.linspace(1.0, 1.06, 6), [np.cos(self.psi), np.sin(self.psi)]) * self.reach)
         return wall, cells(balls), cells(mark)

@@ -49,7 +49,17 @@ tick-sampled: ±0.2 for bursty or short measurements). With others near 1 on a
    spawned process per core, no store. Timed from the call to the last result: worker start-up, ti.init
    and compilation included (what a user waits for); CPU time includes the workers.
 
-    scripts/bench.py [--quick] [--only reference|scaling|recording|sweep] [--json FILE]
+5. Dense beds (issue 16): N = 10⁴, 10⁵, 10⁶ (10⁴ with --quick) steel balls (r = 6 mm)
+   close-packed at rest in a cylinder (gaps of 1 nm: every contact loads at once),
+   Hertz e = 0.516 (hertz-mindlin), Coulomb μ = 0.8, dt = 1 µs, plus a rotating-drum
+   variant (the jar turning about its own axis at 30 rpm); taimill on one thread
+   (the per-core cost; CPU time of the process) and, when `liggghts` is on PATH, LIGGGHTS-PUBLIC from the same
+   start with the deck `taimill export liggghts` writes (no dumps, no mesh movers for
+   the static bed), its loop time from its log (CPU = loop time × the process' CPU
+   share; it runs on one core). Also the whole `taimill run` process of the 10⁵ case
+   (set-up, 11 steps, store, summary; all threads): wall time and peak RSS.
+
+    scripts/bench.py [--quick] [--only reference|scaling|recording|sweep|dense] [--liggghts-all] [--json FILE]
 """
 
 from __future__ import annotations
@@ -628,11 +638,201 @@ def sweep_section(quick: bool) -> dict:
     return r
 
 
+# ---- 5. dense beds, side by side with LIGGGHTS (issue 16)
+DENSE_N = (10_000, 100_000, 1_000_000)
+DENSE_STEPS = {10_000: 1000, 100_000: 1000, 1_000_000: 100}  # timed steps per case
+DENSE_RADIUS_MM = 6.0  # steel balls of the thesis
+DENSE_GAP = 1e-9  # m between neighbours of the close-packed bed: a bed at rest, every contact closing at once
+LIGGGHTS_MAX_N = 100_000  # 10⁶ balls in LIGGGHTS: ≈ 100 s per 1000 steps, skipped unless --liggghts-all
+DRUM_RPM = 30.0  # the drum variant: the jar turns about its own axis at this speed
+
+
+def dense_case(directory: Path, n: int, drum: bool) -> Path:
+    """A preset of n steel balls (r = 6 mm) in a close-packed bed filling the lower part
+    of a cylinder of height 2R, start positions in start.npz: Hertz with constant
+    restitution 0.516 (hertz-mindlin), Coulomb μ = 0.8, dt = 1 µs. Static: the drive at
+    10⁻⁶ rpm (the worker sets it to exactly 0); drum: the jar turns at DRUM_RPM about
+    its own axis after a 1 ms start-up."""
+    import numpy as np
+
+    from taimill.model.geometry import build_profile
+    from taimill.model.placement import bed_placement
+
+    r = DENSE_RADIUS_MM * 1e-3
+    R = (n * (2 * r) ** 3 / math.sqrt(2) / (1.6 * math.pi)) ** (1 / 3) + 2 * r
+    x = bed_placement(n, r, build_profile((("circle", {"radius": R}),), 0.0), 2 * R, gap=DENSE_GAP)
+    case = directory / f"{'drum' if drum else 'bed'}{n}"
+    case.mkdir(parents=True, exist_ok=True)
+    (case / "jar.toml").write_text(f'description = "bench.py: cylinder for a bed of {n} balls"\n'
+                                   f'height_mm = {2e3 * R!r}\nwall_material = "aisi-304"\n\n'
+                                   f'[[profile]]\ntype = "circle"\nradius_mm = {1e3 * R!r}\n')
+    np.savez(case / "start.npz", positions=x)
+    drive = f"plate_rpm = 1e-6\njar_rpm = {DRUM_RPM}\nramp_time = 0.001\n" if drum else "plate_rpm = 1e-6\nratio = 1\n"
+    (case / "bed.toml").write_text(
+        'jar = "jar.toml"\npair = "steel-steel"\nlaw = "hertz-mindlin"\n' + drive
+        + f'duration = {DENSE_STEPS[n] * 1e-6 + 2e-6!r}\ndt = 1e-6\nseed = 1\ninitial_positions = "start.npz"\n'
+        f'\n[friction]\nmu_s = 0.8\nmu_d = 0.8\n\n[balls]\ncount = {n}\nmaterial = "steel-c1020"\n'
+        f'radius_mm = {DENSE_RADIUS_MM}\n\n[outputs]\ntrajectory_rate = 100\n')
+    return case / "bed.toml"
+
+
+def vm_hwm_mib() -> float:
+    with open("/proc/self/status") as f:
+        return next(int(ln.split()[1]) for ln in f if ln.startswith("VmHWM")) / 1024
+
+
+def work_dense(task: dict) -> dict:
+    """taimill on a dense bed: set-up (interpreter start to the first step done: imports,
+    ti.init, preset and position check, fields, compilation, first neighbour lists),
+    then task["steps"] steps timed, drained as Runner.launch does."""
+    from taimill.model.frame import Ramp
+    from taimill.model.params import load_preset
+    from taimill.model.spec import from_preset
+    from taimill.physics.runner import Runner
+
+    threads = start_taichi(task["threads"])
+    spec = from_preset(load_preset(task["preset"]))
+    if not task["drum"]:
+        spec = spec.replace(plate=Ramp(0.0, 0.0, 0.0, 1.0), jar=Ramp(0.0, 0.0, 0.0, 1.0))
+    runner = Runner([spec])
+    advance(runner.engine, 1)
+    compile_event_export(runner.engine)
+    setup = time.time() - task["spawned"]
+    rss_setup = vm_hwm_mib()
+    (wall, cpu, busy), steps = advance(runner.engine, task["steps"], 1000)
+    return dict(threads=threads, mode=runner.engine.mode, setup=setup, steps=steps, wall=wall, cpu=cpu, busy=busy,
+                rss_setup_mib=rss_setup, rss_mib=vm_hwm_mib())
+
+
+def work_liggghts(task: dict) -> dict:
+    """LIGGGHTS on the same case from the same start: the deck taimill exports (static:
+    without the mesh movers), `task["steps"]` steps, no dumps; its loop time from the
+    log, CPU seconds and peak memory of its process."""
+    import resource
+
+    from taimill.bridge.liggghts import export_case
+    from taimill.model.params import load_preset
+
+    case = Path(task["dir"])
+    export_case(load_preset(task["preset"]), case)
+    keep = []
+    for line in (case / "in.taimill").read_text().splitlines():
+        if line.startswith(("dump", "fix dtcheck")) or (not task["drum"] and line.startswith(("fix plate", "fix spin"))):
+            continue
+        keep.append(f"run {task['steps']}" if line.startswith("run ") else line)
+    (case / "in.taimill").write_text("\n".join(keep) + "\n")
+    t0 = time.perf_counter()
+    proc = subprocess.run(["liggghts", "-in", "in.taimill", "-log", "log.liggghts"], cwd=case, capture_output=True,
+                          text=True, timeout=task["timeout"])
+    wall = time.perf_counter() - t0
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    log = (case / "log.liggghts").read_text() if (case / "log.liggghts").exists() else proc.stdout
+    loop = [ln for ln in log.splitlines() if ln.startswith("Loop time of")]
+    if proc.returncode or not loop:
+        raise RuntimeError(f"liggghts failed ({proc.returncode}): {(proc.stderr or proc.stdout)[-300:]}")
+    words = loop[-1].split()  # Loop time of T on P procs for S steps with N atoms
+    cpu = usage.ru_utime + usage.ru_stime
+    loop_wall, steps, atoms = float(words[3]), int(words[8]), int(words[11])
+    return dict(threads=int(words[5]), wall=wall, loop_wall=loop_wall, steps=steps, atoms=atoms, cpu=cpu,
+                loop_cpu=loop_wall * min(1.0, cpu / wall), setup=wall - loop_wall, rss_mib=usage.ru_maxrss / 1024)
+
+
+def work_cli(task: dict) -> dict:
+    """The whole `taimill run PRESET --out RUN.zarr --json` process: wall seconds and
+    peak resident memory (what a user waits for and needs)."""
+    import resource
+
+    preset = Path(task["preset"])  # frames every 10 steps: the run is then 11 steps, not a frame interval
+    cli = preset.with_name("cli.toml")
+    cli.write_text(preset.read_text().replace("trajectory_rate = 100", "trajectory_rate = 100000"))
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "taimill", "run", str(cli), "--duration", "2e-6", "--out",
+                           task["out"], "--json"], capture_output=True, text=True, timeout=task["timeout"], cwd=ROOT)
+    wall = time.perf_counter() - t0
+    if proc.returncode:
+        raise RuntimeError(proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else "taimill run failed")
+    summary = json.loads(proc.stdout)
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return dict(wall=wall, run_wall=summary["wall_seconds"], steps=summary["steps"], rss_mib=usage.ru_maxrss / 1024)
+
+
+def dense_section(quick: bool, liggghts_all: bool) -> list[dict]:
+    import shutil
+
+    ns = DENSE_N[:1] if quick else DENSE_N
+    have = shutil.which("liggghts") is not None
+    print(f"\n5. Dense beds: close-packed steel balls (r = {DENSE_RADIUS_MM:g} mm) at rest in a cylinder, Hertz e = 0.516,"
+          f" μ = 0.8, dt = 1 µs; one core each: CPU time per ball-step, peak RSS, set-up;"
+          f" LIGGGHTS {'from the same start' if have else 'not installed (liggghts not on PATH)'}")
+    print(f"  {'case':18} {'code':9} {'thr':>3} {'steps':>5} {'set-up s':>8} {'ns CPU/ball-step':>16}"
+          f" {'ns wall/ball-step':>17} {'RSS MiB':>8} {'KiB/ball':>8} {'others':>6}")
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="taimill-dense-") as tmp:
+        cases = [(n, False) for n in ns] + [(ns[min(1, len(ns) - 1)], True)]
+        for n, drum in cases:
+            preset = dense_case(Path(tmp), n, drum)
+            label = f"{'drum' if drum else 'bed'} {n}"
+            steps = DENSE_STEPS[n]
+            r = measure(dict(kind="dense", preset=str(preset), steps=steps, threads=1, drum=drum,
+                             spawned=time.time()), timeout=3600)
+            rows.append(dict(case=label, code="taimill", n=n, drum=drum, **r))
+            if have and (n <= LIGGGHTS_MAX_N or liggghts_all):
+                r = measure(dict(kind="liggghts", preset=str(preset), dir=str(Path(tmp) / f"lig{n}{drum}"),
+                                 steps=steps, drum=drum, timeout=3600), timeout=3700)
+                rows.append(dict(case=label, code="LIGGGHTS", n=n, drum=drum, **r))
+            elif have:
+                rows.append(dict(case=label, code="LIGGGHTS", n=n, drum=drum,
+                                 error=f"skipped above {LIGGGHTS_MAX_N} balls (--liggghts-all runs it)"))
+            if not drum and n == 100_000 or quick and not drum:
+                out = Path(tmp) / f"cli{n}.zarr"
+                r = measure(dict(kind="cli", preset=str(preset), out=str(out), timeout=3600), timeout=3700)
+                rows.append(dict(case=label, code="CLI run", n=n, drum=drum, **r))
+            for row in rows[-3:]:
+                if "printed" not in row:
+                    print_dense_row(row)
+                    row["printed"] = True
+    pairs = {}
+    for row in rows:
+        if "ns_cpu" in row:
+            pairs.setdefault(row["case"], {})[row["code"]] = row["ns_cpu"]
+    for case, p in pairs.items():
+        if "taimill" in p and "LIGGGHTS" in p:
+            print(f"  {case}: taimill / LIGGGHTS CPU per ball-step = {p['taimill'] / p['LIGGGHTS']:.2f}"
+                  " (issue 16 target ≤ 0.5)")
+    return rows
+
+
+WORKERS.update(dense=work_dense, liggghts=work_liggghts, cli=work_cli)
+
+
+def print_dense_row(r: dict):
+    if "error" in r:
+        print(f"  {r['case']:18} {r['code']:9} {r['error']}", flush=True)
+        return
+    n = r["n"]
+    if r["code"] == "CLI run":
+        print(f"  {r['case']:18} {r['code']:9} whole process {r['wall']:.1f} s ({r['steps']} steps, store, summary),"
+              f" peak RSS {r['rss_mib']:.0f} MiB = 300 MB + {(r['rss_mib'] * 2**20 - 300e6) / n / 1024:.2f} KiB/ball",
+              flush=True)
+        return
+    cpu = r["loop_cpu"] if r["code"] == "LIGGGHTS" else r["cpu"]
+    wall = r["loop_wall"] if r["code"] == "LIGGGHTS" else r["wall"]
+    r["ns_cpu"] = cpu / (r["steps"] * n) * 1e9
+    r["ns_wall"] = wall / (r["steps"] * n) * 1e9
+    others = f"{r['others']:.2f}" if "others" in r else "-"
+    if "busy" in r:
+        r.update(load_metrics(r))
+        others = f"{r['others']:.2f}"
+    print(f"  {r['case']:18} {r['code']:9} {r['threads']:>3} {r['steps']:>5} {r['setup']:>8.1f} {r['ns_cpu']:>16.1f}"
+          f" {r['ns_wall']:>17.1f} {r['rss_mib']:>8.0f} {r['rss_mib'] * 1024 / n:>8.2f} {others:>6}", flush=True)
+
+
 # ---------------------------------------------------------------- main
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="short run for CI (< 2 min)")
-    ap.add_argument("--only", choices=("reference", "scaling", "recording", "sweep"), help="run one section")
+    ap.add_argument("--only", choices=("reference", "scaling", "recording", "sweep", "dense"), help="run one section")
+    ap.add_argument("--liggghts-all", action="store_true", help="dense beds: also run LIGGGHTS at 10⁶ balls")
     ap.add_argument("--json", type=Path, metavar="FILE", help="write every number to FILE")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -653,6 +853,8 @@ def main():
         report["recording"], report["recording_overhead"] = recording_section(duration)
     if args.only in (None, "sweep"):
         report["sweep"] = sweep_section(args.quick)
+    if args.only in (None, "dense"):
+        report["dense"] = dense_section(args.quick, args.liggghts_all)
     report["machine"]["load_end"] = os.getloadavg()
     report["total_wall_seconds"] = time.perf_counter() - t0
     print("\nload: %.2f %.2f %.2f at the end;" % report["machine"]["load_end"],

@@ -649,7 +649,7 @@ DRUM_RPM = 30.0  # the drum variant: the jar turns about its own axis at this sp
 
 def dense_case(directory: Path, n: int, drum: bool) -> Path:
     """A preset of n steel balls (r = 6 mm) in a close-packed bed filling the lower part
-    of a cylinder of height 2R, start positions in start.npz: Hertz with constant
+    of a cylinder of height 1.5 R (at most 1 m), start positions in start.npz: Hertz with constant
     restitution 0.516 (hertz-mindlin), Coulomb μ = 0.8, dt = 1 µs. Static: the drive at
     10⁻⁶ rpm (the worker sets it to exactly 0); drum: the jar turns at DRUM_RPM about
     its own axis after a 1 ms start-up."""
@@ -659,12 +659,13 @@ def dense_case(directory: Path, n: int, drum: bool) -> Path:
     from taimill.model.placement import bed_placement
 
     r = DENSE_RADIUS_MM * 1e-3
-    R = (n * (2 * r) ** 3 / math.sqrt(2) / (1.6 * math.pi)) ** (1 / 3) + 2 * r
-    x = bed_placement(n, r, build_profile((("circle", {"radius": R}),), 0.0), 2 * R, gap=DENSE_GAP)
+    R = (n * (2 * r) ** 3 / math.sqrt(2) / math.pi) ** (1 / 3) + 2 * r  # the bed about R high
+    H = min(1.5 * R, 0.999)  # jar files allow up to 1 m
+    x = bed_placement(n, r, build_profile((("circle", {"radius": R}),), 0.0), H, gap=DENSE_GAP)
     case = directory / f"{'drum' if drum else 'bed'}{n}"
     case.mkdir(parents=True, exist_ok=True)
     (case / "jar.toml").write_text(f'description = "bench.py: cylinder for a bed of {n} balls"\n'
-                                   f'height_mm = {2e3 * R!r}\nwall_material = "aisi-304"\n\n'
+                                   f'height_mm = {1e3 * H!r}\nwall_material = "aisi-304"\n\n'
                                    f'[[profile]]\ntype = "circle"\nradius_mm = {1e3 * R!r}\n')
     np.savez(case / "start.npz", positions=x)
     drive = f"plate_rpm = 1e-6\njar_rpm = {DRUM_RPM}\nramp_time = 0.001\n" if drum else "plate_rpm = 1e-6\nratio = 1\n"

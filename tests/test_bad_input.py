@@ -515,6 +515,15 @@ PRESETS = {
     "initial_positions npz without positions": (_top(GOOD_PRESET, 'initial_positions = "../other.npz"'), ["initial_positions", "positions"]),
     "initial_positions npz not a zip": (_top(GOOD_PRESET, 'initial_positions = "../overlap.npz"'), ["initial_positions", "cannot read"]),
 }
+# valid presets LIGGGHTS cannot express: name -> (preset text, extra export argv, words)
+EXPORT_REFUSALS = {
+    "ball-wall rolling resistance": (GOOD_PRESET + "[friction]\nmu_r = 0.05\n", [],
+                                     ["friction.mu_r", "0.05", "ball-wall rolling"]),
+    "coated jar's ball-wall rolling resistance": (GOOD_PRESET + "[friction_ball_wall]\nmu_r = 0.1\n", [],
+                                                  ["friction_ball_wall.mu_r", "0.1", "ball-wall rolling"]),
+    "ball-ball rolling resistance with --strict": (GOOD_PRESET + "[friction_ball_ball]\nmu_r = 0.05\n", ["--strict"],
+                                                   ["friction_ball_ball.mu_r", "0.05", "rolling_friction cdt"]),
+}
 # name -> (jar text, words); each is given to `run --jar` and to `jars show`
 JARS = {
     "cut outside the circle": (_edit(GOOD_JAR, "distance_mm = 18", "distance_mm = 40"), ["profile[1].distance_mm", "40", "(0, 32.5)"]),
@@ -598,6 +607,10 @@ def _content_cases():
     for name, (text, words) in DROP_CSVS.items():
         cases.append((f"drop CSV: {name}", ["calibrate", "fit", "--pair", "steel-steel", "--data", f"{{in}}/csv/{_slug(name)}.csv",
                                             "--out", "{work}/new.toml"], words, {"write": (f"csv/{_slug(name)}.csv", text)}))
+    for name, (text, extra_argv, words) in EXPORT_REFUSALS.items():
+        cases.append((f"export liggghts: {name}", ["export", "liggghts", f"{{in}}/presets/export-{_slug(name)}.toml",
+                                                   *extra_argv, "--out", "{work}/case"], words,
+                      {"write": (f"presets/export-{_slug(name)}.toml", text)}))
     for name, (text, words) in OVERLAYS.items():
         cases.append((f"overlay CSV: {name}", ["report", "{in}/sweep.zarr", "--out", "{work}/rep", "--overlay", f"{{in}}/csv/ov-{_slug(name)}.csv"],
                       words, {"write": (f"csv/ov-{_slug(name)}.csv", text)}))

@@ -125,6 +125,54 @@ def test_cli_export_refuses_in_one_line_with_exit_code_2(tmp_path):
     assert rc == 2 and not (tmp_path / "c").exists()
 
 
+def _deck_line(case, start):
+    return next(line for line in (case / "in.taimill").read_text().splitlines() if line.startswith(start))
+
+
+def test_friction_per_contact_kind_is_exported_per_type_pair(tmp_path):
+    # a coated jar: ball-ball steel-steel μ_d = 0.8, ball-wall the pair's μ_d (type 2 = the wall)
+    p = load_preset("presets/p4-cy-steel.toml", {"law": "hertz-mindlin", "friction.mu_s": 0.8,
+                                                  "pair_ball_wall": "steel-fluorite", "duration": 0.01})
+    m = contact_mapping(p)
+    assert m.friction == {"ball_ball": 0.8, "ball_wall": p.frictions[1].mu_d} and p.frictions[1].mu_d != 0.8
+    assert m.rolling == {} and any("stiction" in w and "ball-wall" in w for w in m.warnings)  # fluorite: 0.25/0.2
+    with pytest.raises(ConfigError, match="pair_ball_wall = 'steel-fluorite'.*stiction"):
+        contact_mapping(p, strict=True)
+    export_case(p, tmp_path / "c")
+    assert _deck_line(tmp_path / "c", "fix m4 ").split()[-5:] == ["2", "0.8", repr(m.friction["ball_wall"]),
+                                                                  repr(m.friction["ball_wall"]), repr(m.friction["ball_wall"])]
+    assert "rolling_friction" not in (tmp_path / "c" / "in.taimill").read_text()
+
+
+def test_rolling_resistance_is_cdt_for_ball_ball_and_refused_for_the_turning_wall(tmp_path):
+    base = {"law": "hertz-mindlin", "friction.mu_s": 0.8, "duration": 0.005, "ramp_time": 0.002}
+    p = load_preset("presets/p4-cy-steel.toml", {**base, "friction_ball_ball.mu_r": 0.05})
+    m = contact_mapping(p)
+    assert m.rolling == {"ball_ball": 0.05, "ball_wall": 0.0} and any("rolling_friction cdt" in w for w in m.warnings)
+    with pytest.raises(ConfigError, match=r"friction_ball_ball\.mu_r = 0\.05"):
+        contact_mapping(p, strict=True)
+    export_case(p, tmp_path / "c")
+    assert _deck_line(tmp_path / "c", "pair_style").startswith("pair_style gran model hertz tangential history "
+                                                               "rolling_friction cdt")
+    assert "rolling_friction" not in _deck_line(tmp_path / "c", "fix walls")
+    assert _deck_line(tmp_path / "c", "fix m8 ").endswith("peratomtypepair 2 0.05 0.0 0.0 0.0")
+    for key in ("friction.mu_r", "friction_ball_wall.mu_r"):  # both kinds, or the wall only
+        with pytest.raises(ConfigError, match=rf"{key.replace('.', '[.]')} = 0\.1: ball-wall rolling resistance"):
+            contact_mapping(load_preset("presets/p4-cy-steel.toml", {**base, key: 0.1}))
+    if LIGGGHTS:  # the deck is valid LIGGGHTS: ~0.005 s of the mill
+        run_liggghts(tmp_path / "c")
+
+
+def test_a_refused_export_leaves_an_existing_case_alone(tmp_path):
+    from taimill.cli import main
+
+    case = tmp_path / "c"
+    assert main(["export", "liggghts", "presets/p4-cy-steel.toml", "--duration", "0.01", "--out", str(case)]) == 0
+    before = {f: f.read_bytes() for f in case.rglob("*") if f.is_file()}
+    rc = main(["export", "liggghts", "presets/p4-cy-steel.toml", "--strict", "--overwrite", "--out", str(case)])
+    assert rc == 2 and {f: f.read_bytes() for f in case.rglob("*") if f.is_file()} == before
+
+
 def _synthetic_dump(path, steps, x, v, s, radius, mass):
     with open(path, "w") as f:
         for k, step in enumerate(steps):

@@ -65,7 +65,8 @@ class Mapping:
     tangential: str  #: LIGGGHTS tangential model
     restitution: dict = field(default_factory=dict)  #: "ball_ball"/"ball_wall" -> LIGGGHTS input e
     stiffness: dict = field(default_factory=dict)  #: hooke/stiffness only: kn, gamman per contact type
-    friction: float = 0.0  #: LIGGGHTS coefficientFriction
+    friction: dict = field(default_factory=dict)  #: "ball_ball"/"ball_wall" -> LIGGGHTS coefficientFriction
+    rolling: dict = field(default_factory=dict)  #: "ball_ball"/"ball_wall" -> coefficientRollingFriction; {}: off
     notes: list = field(default_factory=list)  #: exact correspondences, one line each
     warnings: list = field(default_factory=list)  #: approximations, one line each
 
@@ -106,24 +107,10 @@ def contact_mapping(preset: Preset, *, strict: bool = False) -> Mapping:
     (with `strict`, also for what would only be approximated)."""
     bb, bw = preset.ball_ball, preset.ball_wall
     law = bb.law
-    f = preset.friction
-    if f.mu_s == f.mu_d:
-        friction_note = (f"friction: Coulomb μ = {f.mu_d:g} (LIGGGHTS `tangential history`: a tangential spring "
-                         f"capped at μ F_n; taimill's regularisation below v_s = {f.v_s * 1e3:g} mm/s has no "
-                         "counterpart, the sliding force is the same)")
-        friction_warning = None
-    else:
-        friction_warning = (f"friction: stiction μ_s = {f.mu_s:g} (below v_d = {f.v_d * 1e3:g} mm/s) has no LIGGGHTS "
-                            f"equivalent; mapped to one Coulomb coefficient μ = μ_d = {f.mu_d:g} "
-                            "(`tangential history`)")
-        friction_note = None
-    if friction_warning and strict:
-        raise ConfigError(preset.source, "pair", preset.pair,
-                          f"stiction μ_s = {f.mu_s:g} > μ_d = {f.mu_d:g} has no LIGGGHTS equivalent "
-                          "(set [friction] mu_s = mu_d, or export without --strict to map μ = μ_d)")
-    m = Mapping(normal="hertz", tangential="history", friction=f.mu_d)
-    if friction_note:
-        m.notes.append(friction_note)
+    rolling = _rolling(preset, strict)
+    m = Mapping(normal="hertz", tangential="history", friction=_friction(preset, strict), rolling=rolling.pop("mu_r"))
+    m.notes += rolling.get("notes", [])
+    m.warnings += rolling.get("warnings", [])
     if law == "hertz-mindlin":
         for name, c in (("ball_ball", bb), ("ball_wall", bw)):
             m.restitution[name] = _liggghts_restitution(c.c)
@@ -154,10 +141,71 @@ def contact_mapping(preset: Preset, *, strict: bool = False) -> Mapping:
         m.warnings.append(
             f"normal: {text}; mapped to LIGGGHTS `model hertz` (same Hertz stiffness) with the constant "
             f"restitution it has at u_ref = {bb.u_ref:g} m/s: ball-ball {e_bb:.3f}, ball-wall {e_bw:.3f}")
-    if friction_warning:
-        m.warnings.append(friction_warning)
-    m.notes.append("rolling resistance: none in either code")
     return m
+
+
+def _friction(preset: Preset, strict: bool) -> dict:
+    """LIGGGHTS' Coulomb coefficient per contact kind ("ball_ball"/"ball_wall" -> μ):
+    `coefficientFriction` is a per-type-pair property and the wall is its own atom
+    type, so a coated jar (`pair_ball_wall`) maps exactly. Stiction μ_s > μ_d has no
+    counterpart: μ = μ_d with a warning, or refused with `strict`."""
+    mu = {}
+    for kind, f in zip(("ball_ball", "ball_wall"), preset.frictions):
+        mu[kind] = f.mu_d
+        if f.mu_s != f.mu_d and strict:
+            key = "pair" if preset.wall_friction is None else f"pair_{kind}"
+            raise ConfigError(preset.source, key, f.name,
+                              f"stiction μ_s = {f.mu_s:g} > μ_d = {f.mu_d:g} ({kind.replace('_', '-')}) has no "
+                              "LIGGGHTS equivalent (set mu_s = mu_d, or export without --strict to map μ = μ_d)")
+    return mu
+
+
+def _friction_lines(preset: Preset) -> tuple[list, list]:
+    """(notes, warnings) on the friction mapping, one per distinct contact kind."""
+    notes, warnings = [], []
+    fbb, fbw = preset.frictions
+    same = (fbb.mu_s, fbb.mu_d) == (fbw.mu_s, fbw.mu_d)
+    for label, f in zip(("",) if same else ("ball-ball", "ball-wall"), preset.frictions):
+        where = f" ({label})" if label else ""
+        if f.mu_s == f.mu_d:
+            notes.append(f"friction{where}: Coulomb μ = {f.mu_d:g} (LIGGGHTS `tangential history`: a tangential "
+                         f"spring capped at μ F_n; taimill's regularisation below v_s = {f.v_s * 1e3:g} mm/s has no "
+                         "counterpart, the sliding force is the same)")
+        else:
+            warnings.append(f"friction{where}: stiction μ_s = {f.mu_s:g} (below v_d = {f.v_d * 1e3:g} mm/s) has no "
+                            f"LIGGGHTS equivalent; mapped to one Coulomb coefficient μ = μ_d = {f.mu_d:g} "
+                            "(`tangential history`)")
+    return notes, warnings
+
+
+def _rolling(preset: Preset, strict: bool) -> dict:
+    """Rolling resistance: taimill's constant directional torque μ_r R* F_n is LIGGGHTS'
+    `rolling_friction cdt` (coefficientRollingFriction per type pair) for ball-ball
+    contacts, which both codes measure by ω_i − ω_j. LIGGGHTS' wall contacts measure the
+    ball's ground-frame spin (a mesh has no spin of its own), taimill's the spin relative
+    to the jar wall: a ball carried round by the jar would be braked in LIGGGHTS and not in
+    taimill, so ball-wall μ_r > 0 is refused. Returns {"mu_r": {kind: μ_r}, notes, warnings}
+    with the friction notes and warnings folded in."""
+    fbb, fbw = preset.frictions
+    notes, warnings = _friction_lines(preset)
+    if fbw.mu_r > 0:
+        key = "friction_ball_wall.mu_r" if preset.wall_friction is not None else "friction.mu_r"
+        raise ConfigError(preset.source, key, fbw.mu_r,
+                          "ball-wall rolling resistance has no LIGGGHTS equivalent in a turning jar (its wall "
+                          "contacts brake the ball's ground-frame spin, taimill's the spin relative to the wall); "
+                          "set it to 0 to export")
+    if fbb.mu_r == 0:
+        notes.append("rolling resistance: none in either code")
+        return {"mu_r": {}, "notes": notes, "warnings": warnings}
+    text = (f"rolling resistance (ball-ball): μ_r = {fbb.mu_r:g} as LIGGGHTS `rolling_friction cdt` (the same torque "
+            "μ_r R* F_n against ω_i − ω_j), except that LIGGGHTS takes F_n without its damping part and has no "
+            "cap: near ω_r = 0 its torque flips sign every step where taimill's settles the rolling")
+    if strict:
+        key = "friction_ball_ball.mu_r" if preset.wall_friction is not None else "friction.mu_r"
+        raise ConfigError(preset.source, key, fbb.mu_r, text.split(": ", 1)[1] + "; export without --strict "
+                          "to map it")
+    warnings.append(text)
+    return {"mu_r": {"ball_ball": fbb.mu_r, "ball_wall": 0.0}, "notes": notes, "warnings": warnings}
 
 
 def motion_lines(preset: Preset) -> list[str]:
@@ -231,12 +279,13 @@ class Export:
 
 
 def export_case(preset: Preset, out, *, strict: bool = False, dump_mesh: bool = False,
-                liggghts: str = "liggghts") -> Export:
+                liggghts: str = "liggghts", mapping: Mapping | None = None) -> Export:
     """Write the LIGGGHTS case of `preset` into directory `out` (module doc). ConfigError
     for what LIGGGHTS cannot express; approximations are in the returned mapping's
-    warnings (the command line prints them)."""
+    warnings (the command line prints them). `mapping`: contact_mapping(preset, strict=…)
+    if the caller already made it (to refuse before touching `out`)."""
     out = Path(out)
-    mapping = contact_mapping(preset, strict=strict)
+    mapping = mapping or contact_mapping(preset, strict=strict)
     spec = from_preset(preset)
     mesh = jar_mesh(preset.jar.profile, preset.jar.height)
     check = time_step_check(preset, preset.dt)
@@ -261,6 +310,7 @@ def export_case(preset: Preset, out, *, strict: bool = False, dump_mesh: bool = 
                      "deviation": mesh.deviation, "tolerance": TOLERANCE},
         "mapping": {"normal": mapping.normal, "tangential": mapping.tangential,
                     "restitution": mapping.restitution, "friction": mapping.friction,
+                    "rolling": mapping.rolling,
                     "notes": mapping.notes, "warnings": mapping.warnings},
         "time_step_check": check,
     }
@@ -345,8 +395,11 @@ def _deck(preset: Preset, m: Mapping, spec, steps: int, check: dict, dump_mesh: 
         f"fix m1 all property/global youngsModulus peratomtype {_n(ball.youngs_modulus)} {_n(wall.youngs_modulus)}",
         f"fix m2 all property/global poissonsRatio peratomtype {_n(ball.poisson)} {_n(wall.poisson)}",
         *props,
-        f"fix m4 all property/global coefficientFriction peratomtypepair {_pair_matrix(m.friction, m.friction)}",
-        f"pair_style gran {models} {keywords}",
+        f"fix m4 all property/global coefficientFriction peratomtypepair "
+        f"{_pair_matrix(m.friction['ball_ball'], m.friction['ball_wall'])}",
+        *([f"fix m8 all property/global coefficientRollingFriction peratomtypepair "
+           f"{_pair_matrix(m.rolling['ball_ball'], m.rolling['ball_wall'])}"] if m.rolling else []),
+        f"pair_style gran {models}{' rolling_friction cdt' if m.rolling else ''} {keywords}",
         "pair_coeff * *",
         f"timestep {_n(preset.dt)}",
         "",

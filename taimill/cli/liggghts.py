@@ -46,20 +46,22 @@ def _check_out(path: str, overwrite: bool) -> None:
 
 
 def cmd_export(a) -> int:
-    from taimill.bridge.liggghts import export_case
+    from taimill.bridge.liggghts import contact_mapping, export_case
     from taimill.model.params import load_preset
 
     from taimill.bridge.liggghts import MANIFEST
     from taimill.errors import ConfigError
 
     preset = load_preset(a.preset, overrides(a))
+    mapping = contact_mapping(preset, strict=a.strict)  # a refusal leaves an existing --out case untouched
     _check_out(a.out, a.overwrite)
     out = Path(a.out)
     if out.exists():
         if not out.is_dir() or not ((out / MANIFEST).exists() or not any(out.iterdir())):
             raise ConfigError("command line", "--out", a.out, "exists and is not an exported case; not replaced")
         shutil.rmtree(out)
-    result = export_case(preset, a.out, strict=a.strict, dump_mesh=a.dump_mesh, liggghts=a.liggghts)
+    result = export_case(preset, a.out, strict=a.strict, dump_mesh=a.dump_mesh, liggghts=a.liggghts,
+                         mapping=mapping)
     for w in result.mapping.warnings:
         print(f"taimill: warning: {w}", file=sys.stderr)
     print(result.describe())

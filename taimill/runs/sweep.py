@@ -11,6 +11,7 @@ event table is bit-identical (tests/test_sweep.py).
 
 from __future__ import annotations
 
+import decimal
 import itertools
 import math
 import os
@@ -66,11 +67,16 @@ def parse_values(text: str, key: str, kind=float) -> list:
             a, b, step = (float(p) for p in parts)
         except ValueError:
             raise bad("A, B and STEP of A:B:STEP must be numbers") from None
-        if not all(map(math.isfinite, (a, b, step))) or step == 0:
+        # STEP = 0 and the count from the text in decimal: after a Taichi run this
+        # process's CPU flushes subnormals to zero, and float("1e-308") reads 0
+        exact = [decimal.Decimal(p.strip()) for p in parts]
+        if not all(map(math.isfinite, (a, b, step))) or not all(d.is_finite() for d in exact) or exact[2] == 0:
             raise bad("A:B:STEP needs finite numbers and STEP ≠ 0")
+        with decimal.localcontext(traps=[]):  # a 1e-999999999 STEP counts as infinitely many
+            count = abs(exact[1] - exact[0]) / abs(exact[2])
+        if count >= MAX_POINTS:
+            raise bad(f"more than {MAX_POINTS} values; at most {MAX_POINTS}")
         n = int(math.floor(abs(b - a) / abs(step) + 1e-9)) + 1
-        if n > MAX_POINTS:
-            raise bad(f"{n} values; at most {MAX_POINTS}")
         step = math.copysign(abs(step), b - a) if b != a else step
         values = [round(a + i * step, 10) for i in range(n)]
     else:

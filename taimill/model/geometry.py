@@ -227,6 +227,25 @@ def _outline(pieces, arcs, lines, per_radian=2000):
     return np.array(pts)
 
 
+def piece_bounds(pieces: np.ndarray) -> np.ndarray:
+    """(K, 3) rows (mx, my, ρ): a point m on each piece and the largest distance from m
+    to any point of the piece (m). So |p - m| bounds the distance from p to the piece
+    from above and |p - m| - ρ from below (the Taichi SDF prunes pieces with them).
+    Line: its midpoint, half its length; arc: its middle point, the longer chord to an
+    end (an arc's half-angle is at most π)."""
+    rows = []
+    for row in np.atleast_2d(pieces):
+        if row[0] == LINE:
+            a, b = row[1:3], row[3:5]
+            m = 0.5 * (a + b)
+            rho = 0.5 * float(np.hypot(*(b - a)))
+        else:
+            m = row[1:3] + row[3] * row[5:7]
+            rho = max(float(np.hypot(*(row[8:10] - m))), float(np.hypot(*(row[10:12] - m))))
+        rows.append([m[0], m[1], rho])
+    return np.array(rows).reshape(-1, 3)
+
+
 def _check_star_shaped(profile: Profile):
     ang = np.unwrap(np.arctan2(profile.outline[:, 1], profile.outline[:, 0]))
     if np.any(np.diff(ang) < -1e-9) or abs(ang[-1] - ang[0] - 2 * np.pi) > 0.05:

@@ -16,7 +16,7 @@ import taichi as ti
 from taimill.physics import state as S
 from taimill.physics.frame import wall_velocity_ground
 from taimill.physics.laws import elastic_energy, friction_force, normal_force, rolling_torque
-from taimill.physics.walls import wall_sdf
+from taimill.physics.walls import wall_near
 
 
 @ti.func
@@ -185,7 +185,7 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
     was_open = F.slot_mask[b, i]
     seen = 0
     for wall in ti.static(range(S.WALLS)):
-        phi, grad = wall_sdf(F, b, wall, xi)
+        phi, grad = wall_near(F, b, i, wall, xi, ri)  # exact where φ < r: all that matters here
         u = ri - phi
         if phi < -ri:  # centre beyond the wall: it tunnelled (dt too large for the stiffness)
             F.status[b] = S.ESCAPED

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from taimill.model.geometry import piece_bounds
 from taimill.model.params import Friction
 from taimill.model.spec import MillSpec, grid_for, skin_for
 from taimill.physics import state as S
@@ -40,6 +41,9 @@ def write_mill(F, b: int, spec: MillSpec):
     rows = F.piece.to_numpy()
     rows[b, : len(pieces)] = pieces
     F.piece.from_numpy(rows)
+    rows = F.piece_bound.to_numpy()
+    rows[b, : len(pieces)] = piece_bounds(pieces)
+    F.piece_bound.from_numpy(rows)
     lo, h, dim = grid_for(spec)
     if np.prod(dim) > F.grid_cells:
         raise ValueError(f"grid of {np.prod(dim)} cells, fields hold {F.grid_cells}")
@@ -66,6 +70,9 @@ def write_mill(F, b: int, spec: MillSpec):
         arr = field.to_numpy()
         arr[b] = 0.0
         field.from_numpy(arr)
+    ref = F.side_ref.to_numpy()
+    ref[b] = (0.0, 0.0, -1.0)  # no bound yet: evaluate the profile first
+    F.side_ref.from_numpy(ref)
     sm = F.slot_mask.to_numpy()
     sm[b] = 0
     F.slot_mask.from_numpy(sm)

@@ -83,6 +83,7 @@ class Fields:
         # jar profile: boundary pieces, rows of taimill.model.geometry [B, MAX_PIECES]
         self.n_pieces = ti.field(i32, B)
         self.piece = ti.Vector.field(PIECE_COLUMNS, f64, (B, MAX_PIECES))
+        self.piece_bound = ti.Vector.field(3, f64, (B, MAX_PIECES))  #: m, geometry.piece_bounds rows
         # uniform grid of the spatial hash [B]
         self.grid_lo = ti.Vector.field(3, f64, B)  #: m, corner of the grid
         self.grid_h = ti.field(f64, B)  #: m, cell edge (≥ largest ball diameter)
@@ -106,6 +107,7 @@ class Fields:
         self.dissipated = ti.field(f64, (B, N))  #: J, in contacts this ball owns
         self.mech = ti.field(f64, (B, N, NMECH))  #: J, dissipation by mechanism, booked in the force pass
         self.elastic = ti.field(f64, (B, N))  #: J, stored now in contacts this ball owns
+        self.side_ref = ti.field(ti.types.vector(3, f64), (B, N))  #: m, (x₀, y₀, lower bound of φ there), walls.side_wall_near
         self.step = ti.field(i64, B)
         self.status = ti.field(i32, B)
         self.bad_ball = ti.field(i32, B)

@@ -14,6 +14,10 @@ import taichi as ti
 SIDE, FLOOR, LID = 0, 1, 2
 LINE, ARC = 0, 1
 BIG = 1e9
+# Slack of the bounds below, m: far beyond the rounding of distances of a few cm
+# (≈ 1e-17 m), so a pruned piece or a skipped evaluation could never have changed a
+# result, which stays bit-identical to the full scan.
+BOUND_SLACK = 1e-9
 
 
 @ti.func
@@ -47,22 +51,67 @@ def piece_closest(row, p):
 @ti.func
 def profile_sdf(F: ti.template(), b, p):
     """(φ, ∇φ) of the profile at the 2-D point p: the nearest piece, signed by its
-    inward normal."""
+    inward normal. Pieces that cannot be the nearest are skipped: each has a point m
+    on it and a radius ρ around m holding it (F.piece_bound, geometry.piece_bounds);
+    the nearest m bounds the distance from above, |p - m| - ρ a piece's from below."""
+    n_pieces = F.n_pieces[b]
+    reach = BIG
+    if n_pieces > 1:
+        near = BIG
+        for k in range(n_pieces):
+            m = F.piece_bound[b, k]
+            near = ti.min(near, (p - ti.Vector([m[0], m[1]])).norm_sqr())
+        reach = ti.sqrt(near) + BOUND_SLACK
     best = BIG
     phi = BIG
     grad = ti.Vector([0.0, 0.0])
-    for k in range(F.n_pieces[b]):
-        q, n = piece_closest(F.piece[b, k], p)
-        v = p - q
-        dist = v.norm()
-        if dist < best:
-            sign = 1.0 if v.dot(n) >= 0.0 else -1.0
-            best = dist
-            phi = sign * dist
-            grad = n
-            if dist > 1e-12:
-                grad = sign * v / dist
+    for k in range(n_pieces):
+        m = F.piece_bound[b, k]
+        lim = reach + m[2]
+        if (p - ti.Vector([m[0], m[1]])).norm_sqr() <= lim * lim:
+            q, n = piece_closest(F.piece[b, k], p)
+            v = p - q
+            dist = v.norm()
+            if dist < best:
+                sign = 1.0 if v.dot(n) >= 0.0 else -1.0
+                best = dist
+                phi = sign * dist
+                grad = n
+                if dist > 1e-12:
+                    grad = sign * v / dist
     return phi, grad
+
+
+@ti.func
+def side_wall_near(F: ti.template(), b, i, x, reach):
+    """(φ, ∇φ) of the side wall at ball i's centre x where φ < reach, else (reach, 0):
+    beyond reach only "no contact" matters. φ is 1-Lipschitz, so φ(x) ≥ φ(x₀) - |x - x₀|
+    from the last exact value at x₀ (F.side_ref) decides that without the profile
+    while the ball is far from the wall."""
+    ref = F.side_ref[b, i]  # x₀, y₀, φ(x₀) - BOUND_SLACK
+    dx, dy = x[0] - ref[0], x[1] - ref[1]
+    slack = ref[2] - reach
+    phi = reach
+    grad = ti.Vector([0.0, 0.0, 0.0])
+    if not (slack > 0.0 and dx * dx + dy * dy < slack * slack):
+        p2, g2 = profile_sdf(F, b, ti.Vector([x[0], x[1]]))
+        phi, grad = p2, ti.Vector([g2[0], g2[1], 0.0])
+        F.side_ref[b, i] = ti.Vector([x[0], x[1], p2 - BOUND_SLACK])
+    return phi, grad
+
+
+@ti.func
+def wall_near(F: ti.template(), b, i, wall: ti.template(), x, reach):
+    """wall_sdf for ball i where it matters: exact where φ < reach, else (reach, 0)."""
+    phi = 0.0
+    grad = ti.Vector([0.0, 0.0, 0.0])
+    if ti.static(wall == SIDE):
+        phi, grad = side_wall_near(F, b, i, x, reach)
+    else:
+        phi, grad = wall_sdf(F, b, wall, x)
+    return phi, grad
+
+
 @ti.func
 def wall_sdf(F: ti.template(), b, wall: ti.template(), x):
     """(φ, ∇φ) of wall SIDE, FLOOR or LID at x; ∇φ points into the jar."""

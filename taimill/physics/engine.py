@@ -15,7 +15,7 @@ import taichi as ti
 from taimill.physics import state as S
 from taimill.physics.neighbours import rebuild_parallel, rebuild_serial
 from taimill.physics.contacts import ball_forces
-from taimill.physics.frame import drive_at, ramp_at, wall_velocity_ground
+from taimill.physics.frame import drive_turning, ramp_at, ramp_turn, wall_velocity_ground
 from taimill.physics.integrator import integrate
 
 PAD = 512
@@ -23,7 +23,16 @@ PAD = 512
 
 @ti.func
 def drive(F: ti.template(), b, t):
-    return drive_at(F.plate_ramp[b], F.jar_ramp[b], t, F.dt[b])
+    """The drive of mill b over [t, t + dt], with cos and sin of the jar's turn kept
+    while the turn repeats to the bit (every step at constant speed: two of the
+    step's four libm calls)."""
+    dt = F.dt[b]
+    turn = ramp_turn(F.jar_ramp[b], t, dt)
+    trig = F.turn_trig[b]
+    if trig[0] != turn:
+        trig = ti.Vector([turn, ti.cos(turn), ti.sin(turn)])
+        F.turn_trig[b] = trig
+    return drive_turning(F.plate_ramp[b], F.jar_ramp[b], t, dt, trig[1], trig[2])
 
 
 @ti.func

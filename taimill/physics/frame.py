@@ -53,15 +53,16 @@ def ramp_turn(p, t, dt):
 
 
 @ti.func
-def drive_at(plate, jar, t, dt):
-    """The drive over the step [t, t + dt], trigonometry done once per step."""
+def drive_turning(plate, jar, t, dt, cturn, sturn):
+    """The drive over the step [t, t + dt], trigonometry done once per step; cturn,
+    sturn are cos and sin of the jar's turn ramp_turn(jar, t, dt), which the caller may
+    keep from an earlier step (at constant speed the turn repeats to the bit)."""
     om, om_dot, phi_p = ramp_at(plate, t)
     w, _, phi_j = ramp_at(jar, t)
     w_next, _, _ = ramp_at(jar, t + dt)
     psi = phi_p - phi_j
-    turn = ramp_turn(jar, t, dt)
     return Drive(om=om, om_dot=om_dot, w=w, w_next=w_next, cpsi=ti.cos(psi), spsi=ti.sin(psi),
-                 cturn=ti.cos(turn), sturn=ti.sin(turn))
+                 cturn=cturn, sturn=sturn)
 
 
 @ti.func

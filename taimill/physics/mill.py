@@ -26,6 +26,7 @@ def write_mill(F, b: int, spec: MillSpec):
     F.plate_ramp[b] = spec.plate.as_tuple()
     F.jar_ramp[b] = spec.jar.as_tuple()
     F.frame_every[b] = spec.frame_every
+    F.turn_trig[b] = (float("inf"), 1.0, 0.0)  # no turn is inf: computed at the first step (NaN would not do: Taichi compares floats ordered)
     F.target[b] = spec.steps
     F.stress_un[b] = spec.stress_min_un
     F.impact_age[b] = spec.impact_age

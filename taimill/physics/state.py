@@ -64,6 +64,7 @@ class Fields:
         self.plate_ramp = ti.Vector.field(5, f64, B)  #: Ω ramp (t0, start, end, T, phase0)
         self.jar_ramp = ti.Vector.field(5, f64, B)  #: w ramp, absolute jar spin
         self.frame_every = ti.field(i32, B)  #: steps between frames
+        self.turn_trig = ti.Vector.field(3, f64, B)  #: (Δφ_jar, cos, sin) of the last step's turn (engine.drive)
         self.target = ti.field(i64, B)  #: step count to reach
         # class of a contact for the mechanism ledger (taimill.model.mechanisms) [B]
         self.stress_un = ti.field(f64, B)  #: m/s, least onset normal speed of an impact

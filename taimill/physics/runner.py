@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import math
 import os
 import sys
 
@@ -33,20 +34,34 @@ PARALLEL_ABOVE = 50_000
 # into the sinks, whose NumPy work has a fixed cost per call (≈ 4 ms with the summary
 # sink): at 0.05 s that was 17 % of a 12-ball run, at 0.25 s it is ≈ 7 % (cProfile of run()).
 LAUNCH_SECONDS = 0.25
-FRAME_CAPACITY = 256  # frames buffered per mill between drains (fewer for huge mills)
+# frames buffered per mill between drains (fewer for huge mills): enough for a launch
+# of LAUNCH_SECONDS at the mill's frame rate, within these bounds. Dense trajectories
+# (10⁵ frames/s) otherwise cut launches to 2000 steps, each paying a drain.
+FRAME_CAPACITY = (256, 32768)
 _engines: dict = {}
 
 
-def _engine(batch, balls, mode, use_grid, cells) -> Engine:
+def _engine(batch, balls, mode, use_grid, cells, frames=FRAME_CAPACITY[0]) -> Engine:
     """Engines are reused within a process: new fields mean new kernel instances, and
     compiling those costs ≈ 1.3 s each. Ball counts with the same padded row length
-    (Engine.BALL_PAD) share one engine: its fields are identical."""
+    (Engine.BALL_PAD) share one engine: its fields are identical; so do frame
+    capacities up to one of an engine already made."""
     balls = -(-balls // Engine.BALL_PAD) * Engine.BALL_PAD
-    key = (batch, balls, mode, use_grid, cells)
-    if key not in _engines:
-        _engines[key] = Engine(batch, balls, mode=mode, use_grid=use_grid, grid_cells=cells,
-                               frame_capacity=FRAME_CAPACITY if mode == "fused" else 8)
+    frames = frames if mode == "fused" else 8
+    for (b, n, m, g, c, f), engine in _engines.items():
+        if (b, n, m, g, c) == (batch, balls, mode, use_grid, cells) and f >= frames:
+            return engine
+    key = (batch, balls, mode, use_grid, cells, frames)
+    _engines[key] = Engine(batch, balls, mode=mode, use_grid=use_grid, grid_cells=cells, frame_capacity=frames)
     return _engines[key]
+
+
+def frame_capacity(specs: list[MillSpec]) -> int:
+    """Frames a launch of LAUNCH_SECONDS of the densest mill needs (a power of two,
+    within FRAME_CAPACITY, the upper bound shared by the batch's mills)."""
+    lo, hi = FRAME_CAPACITY
+    need = max(LAUNCH_SECONDS / (s.dt * s.frame_every) for s in specs) + 2
+    return int(min(max(lo, hi // len(specs)), max(lo, 1 << math.ceil(math.log2(need)))))
 
 
 def init_taichi(threads: int | None = None):
@@ -98,7 +113,7 @@ class Runner:
         n = max(s.n for s in specs)
         mode = mode or ("parallel" if len(specs) == 1 and n > PARALLEL_ABOVE else "fused")
         cells = 1 << max(grid_cells_for(s) for s in specs).bit_length()
-        self.engine = _engine(len(specs), n, mode, use_grid, cells)
+        self.engine = _engine(len(specs), n, mode, use_grid, cells, frame_capacity(specs))
         every = min(s.frame_every for s in specs)
         room = (self.engine.F.frame_capacity - 2) * every
         if mode == "fused":

@@ -46,6 +46,7 @@ from pathlib import Path
 
 import numpy as np
 import zarr
+from zarr.codecs import BloscCodec
 from zarr.core.buffer import default_buffer_prototype
 from zarr.core.sync import sync
 
@@ -65,6 +66,17 @@ COMMIT_SECONDS = 0.2
 JOURNAL = "journal"
 JOURNAL_DESCRIPTION = ("rows committed since the last whole chunk of each table, one NumPy .npz per commit "
                        "(TABLE/start, TABLE/COLUMN); readers append them after n_valid; deleted when the writer finishes")
+# Trajectory and energy rows per chunk when the sink is not told (ZarrSink): about
+# FRAME_CHUNK_SECONDS of simulated frames at the run's trajectory_rate, within these
+# bounds. zarr costs ≈ 2 ms per chunk of every array whatever its size (scripts/bench.py
+# --only dense): at 10⁵ frames/s, 1024-row chunks of the 30-odd frame and ledger arrays
+# cost 70 µs per frame, ten times the simulation; 65536-row chunks ≈ 2 µs.
+FRAME_CHUNK_SECONDS = 0.5
+FRAME_CHUNK_ROWS = (1024, 65536)
+# Every array: LZ4 after byte shuffling (Blosc), for floating-point columns faster and
+# smaller than zarr's default Zstandard (trajectories: 1.4 vs 3.1 µs per frame of 12
+# balls, compression 1.31 vs 1.08).
+COMPRESSOR = BloscCodec(cname="lz4", clevel=5, shuffle="shuffle")
 # Statuses whose writer called finish() after flushing everything: the tables hold
 # every row the summary counted.
 FLUSHED = ("complete", "interrupted", "unstable")
@@ -159,6 +171,7 @@ class _TableWriter:
             dimension_names=c.dims,
             attributes={"units": c.units, "description": c.description},
             config={"write_empty_chunks": True},
+            compressors=COMPRESSOR,
         )
 
     def add(self, block: dict) -> None:
@@ -214,19 +227,29 @@ class _TableWriter:
         self.group.attrs["n_valid"] = self.committed
 
 
+def frame_chunk_rows(rate) -> int:
+    """Rows per trajectory and energy chunk for frames at `rate` per simulated second:
+    a power of two near FRAME_CHUNK_SECONDS of frames, within FRAME_CHUNK_ROWS."""
+    lo, hi = FRAME_CHUNK_ROWS
+    if not rate or not math.isfinite(rate) or rate <= 0:
+        return lo
+    return int(min(hi, max(lo, 1 << max(0, math.ceil(math.log2(rate * FRAME_CHUNK_SECONDS))))))
+
+
 class ZarrSink:
     """Sink writing one run into a zarr v3 group (layout and crash safety: module doc).
 
     `path_or_group`: a path is opened with mode "w" (a fresh run overwrites it); a
     `zarr.Group` (e.g. one subgroup per sweep point) gets the run's tables, replacing any
-    it held. `frame_chunk` rows per chunk for trajectory and energy, `event_chunk` for
-    events; a trajectory chunk holds at most FRAME_CHUNK_BYTES per array (a frame of
-    10⁵ balls is 2.4 MB: a 1024-frame chunk would be written whole at every commit). Rows reach the disk when a chunk fills, when a ledger block brings the
+    it held. `frame_chunk` rows per chunk for trajectory and energy (default: from the
+    config's trajectory_rate, `frame_chunk_rows`), `event_chunk` for events; a trajectory
+    chunk holds at most FRAME_CHUNK_BYTES per array (a frame of 10⁵ balls is 2.4 MB: a
+    1024-frame chunk would be written whole at every commit). Rows reach the disk when a chunk fills, when a ledger block brings the
     simulated time `commit_every` seconds past the last commit (every table is then
     committed), on `flush()` and on `finish`. An OSError while writing (a full disk)
     raises `StoreWriteError`; `finish` after it only tries to record the status."""
 
-    def __init__(self, path_or_group, *, frame_chunk: int = 1024, event_chunk: int = 65536,
+    def __init__(self, path_or_group, *, frame_chunk: int | None = None, event_chunk: int = 65536,
                  commit_every: float = COMMIT_SECONDS):
         self.failed: str | None = None
         if isinstance(path_or_group, zarr.Group):
@@ -236,7 +259,7 @@ class ZarrSink:
             self.where = str(path_or_group)
             with self._writing("zarr.json"):
                 self.group = zarr.open_group(path_or_group, mode="w")
-        self.chunks = {"trajectory": frame_chunk, "events": event_chunk, "energy": frame_chunk}
+        self.frame_chunk, self.event_chunk = frame_chunk, event_chunk
         self.commit_every = commit_every
         self.t_commit = -math.inf
         self.tables: dict[str, _TableWriter] = {}
@@ -272,7 +295,8 @@ class ZarrSink:
         with self._writing("radii"):
             self.group.create_array("radii", data=radii, overwrite=True, dimension_names=("ball",),
                                     attributes={"units": "m", "description": "ball radii"})
-        chunks = dict(self.chunks)
+        frames = self.frame_chunk or frame_chunk_rows(config.get("trajectory_rate"))
+        chunks = {"trajectory": frames, "events": self.event_chunk, "energy": frames}
         chunks["trajectory"] = max(1, min(chunks["trajectory"], FRAME_CHUNK_BYTES // (24 * max(1, n_balls))))
         for name, columns in layout(n_balls).items():
             with self._writing(name):

@@ -23,6 +23,7 @@ the inward normal at the nearest point — exact for a G1 boundary.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -137,7 +138,22 @@ def _foot(curve, f):
 
 # ------------------------------------------------------------------ building
 def build_profile(primitives, fillet: float) -> Profile:
-    """Boundary pieces of the filleted intersection of `primitives` (m)."""
+    """Boundary pieces of the filleted intersection of `primitives` (m). Kept per
+    distinct jar: building costs ≈ 0.1 s (7200 rays in Python), once for the preset and
+    again for every run's summary, which a sweep pays per point."""
+    key = (tuple((kind, tuple(sorted(p.items()))) for kind, p in primitives), float(fillet))
+    try:
+        return _cached_profile(key)
+    except TypeError:  # an unhashable parameter value: build it uncached
+        return _build(primitives, fillet)
+
+
+@functools.lru_cache(maxsize=64)
+def _cached_profile(key) -> Profile:
+    return _build(tuple((kind, dict(p)) for kind, p in key[0]), key[1])
+
+
+def _build(primitives, fillet: float) -> Profile:
     curves = curves_from(primitives)
     theta = np.linspace(0.0, 2 * np.pi, RAYS, endpoint=False)
     owner = np.empty(RAYS, dtype=int)

@@ -118,3 +118,19 @@ def test_mean_stress_energy_converges_in_dt():
     # for 20-40 steps per contact, standard error 1.1 %; bound 4 % (≈ 3 standard errors).
     a, b = _mean_se_at(1.0, (1, 2, 3, 4), 8.0), _mean_se_at(0.5, (1, 2, 3, 4), 8.0)
     assert abs(a - b) < 0.04 * a
+
+
+def test_a_stale_taichi_cache_lock_is_removed_and_a_fresh_one_kept(tmp_path):
+    """A lock left by a killed process made every later run print Taichi's lock
+    warnings on stderr (whose error output is one line, tests/test_bad_input.py)."""
+    import os
+
+    from taimill.physics.runner import STALE_LOCK_SECONDS, clear_stale_cache_lock
+
+    lock = tmp_path / "ticache" / "ticache.lock"
+    lock.parent.mkdir()
+    lock.touch()
+    t = os.stat(lock).st_mtime
+    assert not clear_stale_cache_lock(tmp_path, now=t + 1.0) and lock.exists()  # being used: kept
+    assert clear_stale_cache_lock(tmp_path, now=t + STALE_LOCK_SECONDS + 1.0) and not lock.exists()
+    assert not clear_stale_cache_lock(tmp_path)  # none left: nothing to do

@@ -64,6 +64,31 @@ def frame_capacity(specs: list[MillSpec]) -> int:
     return int(min(max(lo, hi // len(specs)), max(lo, 1 << math.ceil(math.log2(need)))))
 
 
+# Taichi's offline cache takes `ticache.lock` (an exclusive-create file) only while it
+# reads or writes its index, milliseconds. A process killed meanwhile (kill -9, a
+# machine under memory pressure) leaves it behind, and from then on every process
+# prints "Lock …ticache.lock failed" warnings on stderr and runs uncached.
+STALE_LOCK_SECONDS = 600.0
+
+
+def clear_stale_cache_lock(root: str | os.PathLike | None = None, now: float | None = None) -> bool:
+    """Remove the offline cache's lock file if it is older than STALE_LOCK_SECONDS;
+    True if one was removed. `root`: the cache directory (TI_OFFLINE_CACHE_FILE_PATH,
+    else ~/.cache/taichi); the lock is in its `ticache` folder."""
+    import time
+
+    root = root or os.environ.get("TI_OFFLINE_CACHE_FILE_PATH") or os.path.expanduser("~/.cache/taichi")
+    lock = os.path.join(root, "ticache", "ticache.lock")
+    try:
+        age = (time.time() if now is None else now) - os.stat(lock).st_mtime
+        if age > STALE_LOCK_SECONDS:
+            os.unlink(lock)
+            return True
+    except OSError:  # no lock, or another process removed it first
+        pass
+    return False
+
+
 def init_taichi(threads: int | None = None):
     """ti.init once per process (a second call invalidates fields). Serial loops and
     f64 make results bit-identical run to run (tests/test_runs.py); without fast-math the
@@ -73,6 +98,7 @@ def init_taichi(threads: int | None = None):
         return
     if threads:  # through Taichi's own variable: a kwarg beside it would print a warning
         os.environ["TI_CPU_MAX_NUM_THREADS"] = str(int(threads))
+    clear_stale_cache_lock()
     kw = {}
     level = os.environ.get("TAIMILL_TI_LOG", "warn")
     # ti.init prints "[Taichi] Starting on arch=…" whatever the log level: kept off stdout

@@ -71,14 +71,14 @@ def frame_capacity(specs: list[MillSpec]) -> int:
 STALE_LOCK_SECONDS = 600.0
 
 
-def clear_stale_cache_lock(root: str | os.PathLike | None = None, now: float | None = None) -> bool:
+def clear_stale_cache_lock(cache_dir: str | os.PathLike | None = None, now: float | None = None) -> bool:
     """Remove the offline cache's lock file if it is older than STALE_LOCK_SECONDS;
-    True if one was removed. `root`: the cache directory (TI_OFFLINE_CACHE_FILE_PATH,
-    else ~/.cache/taichi); the lock is in its `ticache` folder."""
+    True if one was removed. `cache_dir`: Taichi's cache folder, which holds the lock
+    (TI_OFFLINE_CACHE_FILE_PATH, else ~/.cache/taichi/ticache)."""
     import time
 
-    root = root or os.environ.get("TI_OFFLINE_CACHE_FILE_PATH") or os.path.expanduser("~/.cache/taichi")
-    lock = os.path.join(root, "ticache", "ticache.lock")
+    cache_dir = cache_dir or os.environ.get("TI_OFFLINE_CACHE_FILE_PATH") or os.path.expanduser("~/.cache/taichi/ticache")
+    lock = os.path.join(cache_dir, "ticache.lock")
     try:
         age = (time.time() if now is None else now) - os.stat(lock).st_mtime
         if age > STALE_LOCK_SECONDS:
@@ -100,7 +100,11 @@ def init_taichi(threads: int | None = None):
         os.environ["TI_CPU_MAX_NUM_THREADS"] = str(int(threads))
     clear_stale_cache_lock()
     kw = {}
-    level = os.environ.get("TAIMILL_TI_LOG", "warn")
+    # Taichi's own warnings are about its compile cache (a lock held by another taimill
+    # starting at the same moment, or left by a killed one): the run is unaffected, only
+    # its start-up is uncached, and they would break the one-line error contract on
+    # stderr. Shown with TAIMILL_TI_LOG=warn (docs/outputs.md).
+    level = os.environ.get("TAIMILL_TI_LOG", "error")
     # ti.init prints "[Taichi] Starting on arch=…" whatever the log level: kept off stdout
     # (JSON) and off a progress bar's line, shown on stderr only when asked for (info, debug)
     quiet = level.lower() in ("warn", "warning", "error", "critical")

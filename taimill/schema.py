@@ -133,7 +133,7 @@ SUMMARY_UNITS: dict[str, str] = {
     **{f"dissipated_power_{k}": "W" for k in (*MECHANISM_CLASSES, *MECHANISM_PARTS, *MECHANISM_KINDS)},
     "power": "W", "share": "1",  # main_sink
     "randomness_index": "1", "regime_confidence": "1", "side_wall_fraction": "1",
-    "wall_fraction": "1", "flight_fraction": "1", "flight_chord": "1",  # regime_criteria
+    "wall_fraction": "1", "flight_fraction": "1", "flight_chord": "1", "wall_lag": "1",  # regime_criteria
     "regime_thresholds": "1",
     "power_per_area": "W/m²", "concentration": "1", "arc_length": "m", "angle_deg": "deg",
     "x": "m", "y": "m", "z": "m",  # wear_hot_spot

@@ -267,6 +267,92 @@ def test_regime_features_balls_pinned_to_the_wall_are_rolling():
     assert r["regime_criteria"]["wall_fraction"] == 1.0 and r["regime_criteria"]["flight_fraction"] == 0.0
 
 
+def _wall_lag_frames(g, v_of, t, drive=None):
+    """8 balls on the side wall (centre radii within the touch slack, spread over
+    0.05 mm) and 4 near the axis, velocities v_of(x, om, w) with the drive (Ω, w) of
+    `drive` if given (then stored in the block, as the engine does), else the config's."""
+    rho_w = g.jar_radius - R_BALL - np.linspace(0.0, 5e-5, 8)
+    th = np.linspace(0.3, 2 * np.pi + 0.3, 8, endpoint=False)
+    x = np.vstack([np.column_stack([rho_w * np.cos(th), rho_w * np.sin(th), np.full(8, 0.012)]),
+                   [[0.008, 0.0, 0.006], [-0.008, 0.0, 0.006], [0.0, 0.008, 0.006], [0.0, -0.008, 0.006]]])
+    om, w = drive if drive else (g.plate.end, g.jar.end)
+    block = {"time": t, "position": np.tile(x, (len(t), 1, 1)), "velocity": np.tile(v_of(x, om, w), (len(t), 1, 1)),
+             "spin": np.zeros((len(t), len(x), 3))}
+    if drive:
+        block |= {"plate_speed": np.full(len(t), om), "jar_spin": np.full(len(t), w)}
+    return block, rho_w, th
+
+
+def _lag_of(g, block, t0):
+    f = RegimeFeatures(g, np.full(block["position"].shape[1], R_BALL), t0)
+    f.frames(block)
+    return f.result()
+
+
+def test_wall_lag_is_zero_for_a_ring_carried_with_the_jar_and_one_at_rest_in_the_plate_frame():
+    # wall_lag: azimuthal jar-frame speed of the balls on the wall over (Ω − w) ρ. A ring
+    # turning with the jar has jar-frame velocity 0; a ball at rest in the plate frame has
+    # v = (Ω − w) ẑ × x in the jar frame (the plate frame turns at Ω − w relative to it).
+    # The balls near the axis move fast in both cases and must not count.
+    g = geometry()
+    t = np.arange(2.0, 4.0, 0.01)  # after the 1 s ramp: Ω, w at their targets
+    fast = np.array([3.0, -2.0, 0.0])
+
+    def carried(x, om, w):
+        return np.vstack([np.zeros((8, 3)), np.tile(fast, (4, 1))])
+
+    def plate_rest(x, om, w):
+        return (om - w) * np.column_stack([-x[:, 1], x[:, 0], np.zeros(len(x))])
+
+    r = _lag_of(g, _wall_lag_frames(g, carried, t)[0], 2.0)
+    assert r["regime"] == "rolling" and r["regime_criteria"]["wall_lag"] == pytest.approx(0.0, abs=1e-12)
+    r = _lag_of(g, _wall_lag_frames(g, plate_rest, t)[0], 2.0)
+    assert r["regime_criteria"]["wall_lag"] == pytest.approx(1.0, rel=1e-12)
+
+
+def test_wall_lag_matches_a_hand_computation_with_the_frames_own_drive():
+    # Balls on the wall at different lags c_i of the plate frame's speed, plus radial and
+    # axial velocity (which must not count); the block carries its own Ω, w (different
+    # from the config's, as after a live change in the TUI). By hand: the azimuthal
+    # component v·(−sin θ, cos θ) summed over the wall balls, over Σ (Ω − w) ρ_i.
+    g = geometry()
+    t = np.arange(2.0, 3.0, 0.01)
+    om, w = 15.0, -30.0
+    c = np.array([0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 0.5])
+
+    def mixed(x, om_, w_):
+        th = np.arctan2(x[:8, 1], x[:8, 0])
+        rho = np.hypot(x[:8, 0], x[:8, 1])
+        vphi, vr = c * (om_ - w_) * rho, np.linspace(-0.5, 0.5, 8)
+        v = np.column_stack([vr * np.cos(th) - vphi * np.sin(th), vr * np.sin(th) + vphi * np.cos(th), np.full(8, 0.1)])
+        return np.vstack([v, np.full((4, 3), 1.5)])
+
+    block, rho_w, th = _wall_lag_frames(g, mixed, t, drive=(om, w))
+    v = block["velocity"][0, :8]
+    expected = np.sum(-v[:, 0] * np.sin(th) + v[:, 1] * np.cos(th)) / np.sum((om - w) * rho_w)
+    assert expected == pytest.approx(np.sum(c * rho_w) / np.sum(rho_w))  # the hand sum is what was built in
+    r = _lag_of(g, block, 2.0)
+    assert r["regime_criteria"]["wall_lag"] == pytest.approx(expected, rel=1e-9)
+    # the config's drive (Ω = 20.9, w = −31.4 rad/s) would give a different value
+    assert abs(expected * (om - w) / (g.plate.end - g.jar.end) - expected) > 0.01
+
+
+def test_wall_lag_is_nan_without_balls_on_the_wall_and_reaches_the_sweep_table():
+    from taimill.schema import SUMMARY_UNITS
+    from taimill.store.sweep import scalars
+
+    g = geometry(n=4)
+    t = np.arange(2.0, 3.0, 0.01)
+    x = np.array([[0.008, 0.0, 0.006], [-0.008, 0.0, 0.006], [0.0, 0.008, 0.006], [0.0, -0.008, 0.006]])
+    f = RegimeFeatures(g, np.full(4, R_BALL), 2.0)
+    f.frames({"time": t, "position": np.tile(x, (len(t), 1, 1)), "velocity": np.ones((len(t), 4, 3)),
+              "spin": np.zeros((len(t), 4, 3))})
+    r = f.result()
+    assert math.isnan(r["regime_criteria"]["wall_lag"]) and r["regime"] == "cascading"
+    assert scalars({"regime": "rolling", "regime_criteria": {"wall_lag": 0.98}})["wall_lag"] == 0.98
+    assert SUMMARY_UNITS["wall_lag"] == "1"
+
+
 # ------------------------------------------------------------------ analytic landmarks
 def test_critical_ratio_p4():
     # docs/model.md: |K_c| ≈ 2.17 for the 80 ml P4 jar and 6 mm balls

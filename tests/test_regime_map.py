@@ -1,14 +1,15 @@
-"""Regime maps (docs/regimes.md): the slip ratio that splits a riding charge into a
-pinned ring and a sliding bed, and the (K, μ) figure with its analytic boundaries."""
+"""Regime maps (docs/regimes.md): the wall lag and the slip ratio that split a riding
+charge into a pinned ring, a sliding bed and a rolling bed, and the (K, μ) figure with
+its analytic boundaries."""
 
 import math
 
 import numpy as np
 import pytest
 
-from taimill.analysis.regime import SLIDING_SLIP, map_regime, slip_ratio
+from taimill.analysis.regime import MAP_REGIMES, PINNED_LAG, SLIDING_SLIP, map_regime, slip_ratio
 from taimill.analysis.theory import critical_ratio, pinning_friction, pinning_ratio
-from taimill.figures.regime_map import map_cells, regime_map
+from taimill.figures.regime_map import COLOURS, map_cells, regime_map
 
 GEOMETRY = {"plate_radius": 0.125, "jar_radius": 0.0325, "ball_radius": 0.006, "balls": 12, "ball_mass": 7.1e-3,
             "plate_rpm": 200.0}
@@ -27,6 +28,24 @@ def test_slip_ratio_is_the_share_of_full_sliding_friction_power():
     assert map_regime("cataracting", 0.5) == "cataracting"
     assert math.isinf(slip_ratio(row | {"mu_d_wall": 0.0}))  # nothing holds a frictionless charge
     assert map_regime("rolling", math.inf) == "sliding bed"
+
+
+def test_map_regime_splits_a_riding_charge_three_ways_by_wall_lag_and_slip():
+    # wall_lag < PINNED_LAG: turns with the jar, whatever the slip; near rest in the plate
+    # frame: sliding with slip, rolling in place without it
+    assert map_regime("rolling", 0.1 * SLIDING_SLIP, 0.0) == "pinned ring"
+    assert map_regime("rolling", 5 * SLIDING_SLIP, 0.9 * PINNED_LAG) == "pinned ring"
+    assert map_regime("rolling", SLIDING_SLIP, 1.0) == "sliding bed"
+    assert map_regime("rolling", 0.1 * SLIDING_SLIP, 1.0) == "rolling bed"
+    assert map_regime("rolling", 0.1 * SLIDING_SLIP, PINNED_LAG) == "rolling bed"
+    assert map_regime("rolling", math.inf, 1.0) == "sliding bed"
+    assert map_regime("cataracting", 0.0, 1.0) == "cataracting"
+    # rows of sweep stores older than wall_lag (NaN column, or None): the two-way rule
+    assert map_regime("rolling", 0.1 * SLIDING_SLIP, math.nan) == "pinned ring"
+    assert map_regime("rolling", 0.1 * SLIDING_SLIP, None) == "pinned ring"
+    assert map_regime("rolling", 0.5, math.nan) == "sliding bed"
+    assert "rolling bed" in MAP_REGIMES and all(r in COLOURS for r in MAP_REGIMES)
+    assert len({COLOURS[r] for r in MAP_REGIMES}) == len(MAP_REGIMES)
 
 
 def test_pinning_ratio_inverts_pinning_friction():
@@ -48,10 +67,21 @@ def test_regime_map_colours_cells_and_draws_the_boundaries():
                                         "dissipated_power_side_persistent_friction": (0.001 if pinned else 0.5) * _ref(K, mu)})
     cells = map_cells(rows)
     assert len(cells) == 12
-    assert cells[(0.0, -4.0, 1.0)]["regime"] == "pinned ring"
+    assert cells[(0.0, -4.0, 1.0)]["regime"] == "pinned ring"  # rows without wall_lag: old rule
     assert cells[(0.0, -3.0, 0.05)]["regime"] == "sliding bed"
     assert cells[(0.0, -2.0, 0.25)]["regime"] == "cataracting"
-    fig = regime_map(rows, "test")
+    # with wall_lag: pinned cells lag 0, sliding ones 1; the sliding cell (−4, 0.25) made
+    # slip-free, at rest in the plate frame, is a rolling bed (without wall_lag: pinned)
+    rolled = [r | {"wall_lag": 0.0 if r["dissipated_power_side_persistent_friction"] < 0.01 * _ref(r["ratio"], r["mu"]) else 1.0}
+              for r in rows]
+    for r in rolled:
+        if (r["ratio"], r["mu"]) == (-4.0, 0.25):
+            r["dissipated_power_side_persistent_friction"] = 0.001 * _ref(-4.0, 0.25)
+    cells = map_cells(rolled)
+    assert cells[(0.0, -4.0, 0.25)]["regime"] == "rolling bed" and cells[(0.0, -4.0, 1.0)]["regime"] == "pinned ring"
+    assert cells[(0.0, -3.0, 0.05)]["regime"] == "sliding bed" and cells[(0.0, -4.0, 0.25)]["wall_lag"] == 1.0
+    assert map_cells([{k: v for k, v in r.items() if k != "wall_lag"} for r in rolled])[(0.0, -4.0, 0.25)]["regime"] == "pinned ring"
+    fig = regime_map(rolled, "test")
     ax = fig.axes[0]
     labels = [line.get_label() for line in ax.get_lines()]
     assert any(lab.startswith("μ_pin") for lab in labels) and any(lab.startswith("K_c") for lab in labels)

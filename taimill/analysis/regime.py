@@ -8,6 +8,12 @@ Criteria (each a fraction or a length ratio, measured in the analysis window):
   ball (in flight; the floor and lid do not count, gravity only sets balls on the floor).
 - `flight_chord`: mean distance between successive side-wall impacts (u̇_n ≥ 5 cm/s)
   of the same ball, over the largest chord a centre can fly, 2(R − r).
+- `wall_lag`: for the balls touching the side wall, their mean azimuthal speed in the
+  jar frame over the mean speed (Ω − w) ρ at which the plate frame moves relative to
+  the jar at their centre radius ρ (Ω: plate speed, w: absolute jar spin, both of the
+  frame). 0 for balls carried with the jar, 1 for balls at rest in the plate frame;
+  NaN when no ball touches the wall. Not used by `classify`: the regime map
+  (`map_regime`) splits a riding charge with it.
 
 Rules, in order:
     rolling      wall_fraction ≥ 0.5 and flight_fraction < 0.35   (balls ride the wall)
@@ -72,12 +78,14 @@ class RegimeFeatures:
         self.g, self.radii, self.t0 = g, np.asarray(radii, float), t0
         self.pairwise = len(self.radii) <= MAX_PAIRWISE
         self.next_t = t0
-        self.pieces: dict[int, np.ndarray] = {}  # piece -> [ball-frames, on wall, in flight, chord sum, chords]
+        # piece -> [ball-frames, on wall, in flight, chord sum, chords,
+        #           Σ azimuthal jar-frame speed on the wall, Σ (Ω − w) ρ on the wall]
+        self.pieces: dict[int, np.ndarray] = {}
         self.last_impact: dict[int, tuple[float, float]] = {}
         self.chord_scale = 2.0 * (g.jar_radius - g.ball_radius)
 
     def _piece(self, t: float) -> np.ndarray:
-        return self.pieces.setdefault(int((t - self.t0) // PIECE), np.zeros(5))
+        return self.pieces.setdefault(int((t - self.t0) // PIECE), np.zeros(7))
 
     def frames(self, block: dict) -> None:
         n = len(self.radii)
@@ -85,7 +93,9 @@ class RegimeFeatures:
             if t < self.next_t - 1e-12:
                 continue
             self.next_t = t + 1.0 / FEATURE_RATE
-            w = self.g.jar.at(float(t))[0]
+            # the frame's own drive (a TUI run changes it live), else the config's ramps
+            w = float(block["jar_spin"][f]) if "jar_spin" in block else self.g.jar.at(float(t))[0]
+            om = float(block["plate_speed"][f]) if "plate_speed" in block else self.g.plate.at(float(t))[0]
             c = frame_contacts(self.g, self.radii, block["position"][f], block["velocity"][f], block["spin"][f], w,
                                slack=TOUCH_SLACK * self.g.ball_radius)
             on_wall = np.unique(c["i"][c["j"] == SIDE]).astype(int)
@@ -95,6 +105,11 @@ class RegimeFeatures:
             p[0] += n
             p[1] += len(on_wall)
             p[2] += (n - len(touching)) if self.pairwise else math.nan
+            if len(on_wall):  # wall_lag: azimuthal jar-frame speed vs the plate frame's (Ω − w) ρ
+                x, v = block["position"][f][on_wall], block["velocity"][f][on_wall]
+                rho = np.hypot(x[:, 0], x[:, 1])
+                p[5] += float(np.sum((x[:, 0] * v[:, 1] - x[:, 1] * v[:, 0]) / np.maximum(rho, 1e-12)))
+                p[6] += (om - w) * float(np.sum(rho))
 
     def events(self, block: dict) -> None:
         sel = (block["kind"] == 1) & (block["body_j"] == SIDE) & (block["un"] >= IMPACT_UN) & (block["t_start"] >= self.t0)
@@ -111,7 +126,12 @@ class RegimeFeatures:
     def _criteria(a: np.ndarray) -> dict:
         return {"wall_fraction": a[1] / a[0] if a[0] else math.nan,
                 "flight_fraction": a[2] / a[0] if a[0] else math.nan,
-                "flight_chord": a[3] / a[4] if a[4] else 0.0}
+                "flight_chord": a[3] / a[4] if a[4] else 0.0,
+                "wall_lag": a[5] / a[6] if a[6] else math.nan}
+
+    @staticmethod
+    def _label(crit: dict) -> str:
+        return classify(crit["wall_fraction"], crit["flight_fraction"], crit["flight_chord"])
 
     def result(self) -> dict:
         """{'regime', 'regime_confidence', 'regime_criteria': {...}, 'regime_thresholds'}"""
@@ -119,18 +139,21 @@ class RegimeFeatures:
         if not full:
             return {"regime": "unknown", "regime_confidence": math.nan, "regime_criteria": {}, "regime_thresholds": THRESHOLDS}
         crit = self._criteria(np.sum(full, axis=0))
-        label = classify(**crit)
-        votes = [classify(**self._criteria(p)) for p in full]
+        label = self._label(crit)
+        votes = [self._label(self._criteria(p)) for p in full]
         return {"regime": label, "regime_confidence": votes.count(label) / len(votes),
                 "regime_criteria": crit, "regime_thresholds": THRESHOLDS}
 
 
 # ---------------------------------------------------------------- regime maps
-# The (K, μ) map tells the two ways a charge can ride the wall apart (docs/regimes.md):
-# a *pinned ring* turns with the jar (its contacts with the side wall barely slip), a
-# *sliding bed* stays near rest in the plate frame while the wall slides under it.
-MAP_REGIMES = ("cascading", "cataracting", "pinned ring", "sliding bed")
+# The (K, μ) map tells three ways a charge can ride the wall apart (docs/regimes.md):
+# a *pinned ring* turns with the jar (wall_lag near 0); a charge near rest in the plate
+# frame (wall_lag near 1) is a *sliding bed* when the wall slides under it (slip ratio
+# ≥ SLIDING_SLIP) and a *rolling bed* when its balls roll in place, their contact
+# points moving with the wall (no slip, so by the slip ratio alone it looked pinned).
+MAP_REGIMES = ("cascading", "cataracting", "pinned ring", "sliding bed", "rolling bed")
 SLIDING_SLIP = 0.1  # slip_ratio at and above which a riding charge is a sliding bed
+PINNED_LAG = 0.5  # wall_lag below which a riding charge turns with the jar (pinned ring)
 
 
 def slip_ratio(row: dict) -> float:
@@ -149,10 +172,19 @@ def slip_ratio(row: dict) -> float:
     return power / ref if ref > 0 else math.nan
 
 
-def map_regime(regime: str, slip: float) -> str:
-    """One of MAP_REGIMES: the run's regime, its `rolling` split by the slip ratio."""
+def map_regime(regime: str, slip: float, wall_lag: float = math.nan) -> str:
+    """One of MAP_REGIMES: the run's regime, its `rolling` split by the wall lag and the
+    slip ratio: wall_lag < PINNED_LAG pinned ring; otherwise sliding bed when slip ≥
+    SLIDING_SLIP, else rolling bed. Without a finite wall_lag (rows of sweep stores
+    written before it was measured, which lack the column) the old two-way rule holds:
+    slip ≥ SLIDING_SLIP sliding bed, else pinned ring — so such a "pinned ring" may be
+    a rolling bed."""
     if regime != "rolling":
         return regime if regime in MAP_REGIMES else "unknown"
     if not math.isfinite(slip) and not math.isinf(slip):
         return "unknown"
-    return "sliding bed" if slip >= SLIDING_SLIP else "pinned ring"
+    if wall_lag is None or not math.isfinite(wall_lag):  # an old store: no wall_lag column
+        return "sliding bed" if slip >= SLIDING_SLIP else "pinned ring"
+    if wall_lag < PINNED_LAG:
+        return "pinned ring"
+    return "sliding bed" if slip >= SLIDING_SLIP else "rolling bed"

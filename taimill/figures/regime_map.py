@@ -1,5 +1,5 @@
 """The (K, μ) regime map of a sweep (docs/regimes.md): each point of the plane coloured
-by the charge's motion — cascading, cataracting, pinned ring, sliding bed
+by the charge's motion — cascading, cataracting, pinned ring, sliding bed, rolling bed
 (taimill.analysis.regime.map_regime) — with the analytic boundaries drawn over it: the
 pinning friction μ_pin(K) of one ball that cannot roll (solid), its large-|K| form
 R_p/(K²(R − r)) (dotted), and the single-ball critical ratio K_c (vertical). Contours:
@@ -18,26 +18,33 @@ from taimill.analysis.regime import MAP_REGIMES, map_regime, slip_ratio
 from taimill.analysis.theory import critical_ratio, pinning_friction
 
 COLOURS = {"cascading": "#9ecae1", "cataracting": "#fdae6b", "pinned ring": "#74c476", "sliding bed": "#bcbddc",
-           "unknown": "#ffffff"}
+           "rolling bed": "#fcbba1", "unknown": "#ffffff"}
 MIN_POWER = 1e-3  #: W, contours start a decade above it
 PERSISTENT_FRICTION = tuple(f"dissipated_power_{k}_persistent_friction" for k in ("ball_ball", "side", "floor", "lid"))
 
 
 def map_cells(rows: list[dict]) -> dict:
-    """{(mu_r, K, μ): {regime, impact_power, persistent_friction_power, slip_ratio}},
-    μ being the ball-wall μ_s; replicas averaged, the regime their majority."""
+    """{(mu_r, K, μ): {regime, impact_power, persistent_friction_power, slip_ratio,
+    wall_lag}}, μ being the ball-wall μ_s; replicas averaged, the regime their majority.
+    Rows without a wall_lag column (sweep stores written before it) are split by the
+    slip ratio alone (map_regime)."""
     groups: dict = {}
     for r in rows:
         key = (round(r.get("mu_r", 0.0), 10), round(r["ratio"], 10), round(r.get("mu_wall", r.get("mu", math.nan)), 10))
         groups.setdefault(key, []).append(r)
     out = {}
     for key, rs in groups.items():
-        labels = [map_regime(r.get("regime", ""), slip_ratio(r)) for r in rs]
+        labels = [map_regime(r.get("regime", ""), slip_ratio(r), r.get("wall_lag", math.nan)) for r in rs]
         out[key] = {"regime": max(set(labels), key=labels.count),
                     "impact_power": float(np.mean([r.get("impact_power", math.nan) for r in rs])),
                     "persistent_friction_power": float(np.mean([sum(r.get(c, 0.0) for c in PERSISTENT_FRICTION) for r in rs])),
-                    "slip_ratio": float(np.mean([slip_ratio(r) for r in rs]))}
+                    "slip_ratio": float(np.mean([slip_ratio(r) for r in rs])),
+                    "wall_lag": float(np.mean([_num(r.get("wall_lag")) for r in rs]))}
     return out
+
+
+def _num(v) -> float:
+    return math.nan if v is None else float(v)
 
 
 def _edges(v: np.ndarray, log: bool) -> np.ndarray:

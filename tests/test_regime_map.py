@@ -91,3 +91,29 @@ def test_regime_map_colours_cells_and_draws_the_boundaries():
     k, mu = mu_line.get_xdata(), mu_line.get_ydata()
     np.testing.assert_allclose(mu, [pinning_friction(x, 0.125, 0.0325, 0.006) for x in k])
     assert ax.get_xlim()[0] > ax.get_xlim()[1]  # K falls to the right
+
+
+def test_graphite_bed_rolling_in_place_is_a_rolling_bed_not_a_pinned_ring(tmp_path):
+    # 6 graphite-coated balls at K = −2.2 roll in place on the wall without slipping: at
+    # rest in the plate frame (wall_lag 1.00 from 1 s on in an 8 s run, 0.9999 over 4–8 s)
+    # with a side-wall slip ratio of 0.012–0.015, which alone called them a pinned ring.
+    # 3 s run, window 2–3 s (≈ 8 s CPU); run by the CLI, this module must not start Taichi.
+    import subprocess
+    import sys
+
+    from taimill.model.params import ROOT, load_preset
+    from taimill.runs.sweep import point_values
+    from taimill.store.run import open_run
+    from taimill.store.sweep import scalars
+
+    out, preset = tmp_path / "g6.zarr", "presets/p4-cy-graphite-6.toml"
+    subprocess.run([sys.executable, "-m", "taimill", "run", preset, "--ratio", "-2.2", "--duration", "3",
+                    "--analysis-start", "2", "--out", str(out)], cwd=ROOT, check=True, capture_output=True, timeout=600)
+    summary = open_run(out).summary
+    row = point_values(load_preset(ROOT / preset, {"ratio": -2.2}), 0) | scalars(summary)  # a sweep-table row
+    assert summary["regime"] == "rolling" and summary["regime_confidence"] == 1.0
+    assert row["wall_lag"] == pytest.approx(1.0, abs=0.05)
+    assert slip_ratio(row) < SLIDING_SLIP
+    assert map_regime(row["regime"], slip_ratio(row)) == "pinned ring"  # the old rule's mistake
+    assert map_regime(row["regime"], slip_ratio(row), row["wall_lag"]) == "rolling bed"
+    assert map_cells([row])[(0.0, -2.2, 0.1)]["regime"] == "rolling bed"

@@ -153,7 +153,15 @@ class RegimeFeatures:
 # points moving with the wall (no slip, so by the slip ratio alone it looked pinned).
 MAP_REGIMES = ("cascading", "cataracting", "pinned ring", "sliding bed", "rolling bed")
 SLIDING_SLIP = 0.1  # slip_ratio at and above which a riding charge is a sliding bed
-PINNED_LAG = 0.5  # wall_lag below which a riding charge turns with the jar (pinned ring)
+# wall_lag below which a riding charge turns with the jar (pinned ring). Measured (CY,
+# 8 s runs, window 4–8 s): steel pinned rings −0.020 (K = −3.6) and −0.028 (−4.0);
+# fluorite's sliding bed at −3.0 1.000 (slip 0.72); graphite-6 at −2.2 0.9999, slip
+# 0.015: a bed rolling in place, which the slip ratio alone called pinned. Re-running
+# the seven "pinned ring" cells of results/regime_map_cy.png (12 s, window 4–12 s):
+# five rings −0.041 … −0.012, two beds 0.96 (K = −1, μ 0.25, slip 0.074) and 0.80
+# (K = 0, μ 0.5, confidence 0.5); non-riding cells of those runs read 0.75–0.87. The
+# threshold sits in the middle of the gap between rings (≤ 0) and beds (≥ 0.8).
+PINNED_LAG = 0.5
 
 
 def slip_ratio(row: dict) -> float:

@@ -159,8 +159,10 @@ SLIDING_SLIP = 0.1  # slip_ratio at and above which a riding charge is a sliding
 # 0.015: a bed rolling in place, which the slip ratio alone called pinned. Re-running
 # the seven "pinned ring" cells of results/regime_map_cy.png (12 s, window 4–12 s):
 # five rings −0.041 … −0.012, two beds 0.96 (K = −1, μ 0.25, slip 0.074) and 0.80
-# (K = 0, μ 0.5, confidence 0.5); non-riding cells of those runs read 0.75–0.87. The
-# threshold sits in the middle of the gap between rings (≤ 0) and beds (≥ 0.8).
+# (K = 0, μ 0.5, confidence 0.5); non-riding cells of those runs read 0.75–0.87.
+# results/powder_models.md's rings re-run: graphite-6 at −2.2 … −3.8 all 1.000 (rolling
+# beds), fluorite at −3.8 (μ_r 0.02, 0.1, ball-wall only) 0.017, 0.042, −0.016. The
+# threshold sits in the middle of the gap between rings (≤ 0.05) and beds (≥ 0.8).
 PINNED_LAG = 0.5
 
 

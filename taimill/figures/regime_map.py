@@ -18,7 +18,7 @@ from taimill.analysis.regime import MAP_REGIMES, map_regime, slip_ratio
 from taimill.analysis.theory import critical_ratio, pinning_friction
 
 COLOURS = {"cascading": "#9ecae1", "cataracting": "#fdae6b", "pinned ring": "#74c476", "sliding bed": "#bcbddc",
-           "rolling bed": "#fcbba1", "unknown": "#ffffff"}
+           "rolling bed": "#fa9fb5", "unknown": "#ffffff"}
 MIN_POWER = 1e-3  #: W, contours start a decade above it
 PERSISTENT_FRICTION = tuple(f"dissipated_power_{k}_persistent_friction" for k in ("ball_ball", "side", "floor", "lid"))
 

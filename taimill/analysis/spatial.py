@@ -146,16 +146,29 @@ class WallMap:
 
 
 def _inside_area(g: RunGeometry, edges: np.ndarray, sub: int = 6) -> np.ndarray:
-    """Area (m²) of each square cell of the floor/lid grid inside the jar profile."""
+    """Area (m²) of each square cell of the floor/lid grid inside the jar profile: the
+    share of sub × sub sample points with φ ≥ 0. φ is a distance (1-Lipschitz), so a
+    cell whose centre lies farther from the wall than its half-diagonal (with a margin
+    far above rounding) has every sample on the centre's side: only the cells the wall
+    crosses are sampled (the same counts; 256² cells: 2.4 M SDF points → ≈ 0.1 M)."""
     n, h = len(edges) - 1, edges[1] - edges[0]
     u = (np.arange(n * sub) + 0.5) * h / sub + edges[0]
-    counts = np.zeros((n, n))
-    rows = max(1, (1 << 16) // (n * sub * sub))  # cell rows per SDF call: bounded memory
-    for a in range(0, n, rows):
-        xx, yy = np.meshgrid(u[a * sub:(a + rows) * sub], u, indexing="ij")
-        phi, _ = g.sdf(np.column_stack([xx.ravel(), yy.ravel()]))
-        counts[a:a + rows] = (phi >= 0).reshape(-1, sub, n, sub).sum(axis=(1, 3))
-    return counts * (h / sub) ** 2
+    mid = 0.5 * (edges[:-1] + edges[1:])
+    cx, cy = np.meshgrid(mid, mid, indexing="ij")
+    phi_c, _ = g.sdf(np.column_stack([cx.ravel(), cy.ravel()]))
+    reach = h * math.sqrt(0.5) * (1.0 + 1e-6) + 1e-12 * (abs(edges[0]) + abs(edges[-1]))
+    counts = np.where(phi_c > reach, float(sub * sub), 0.0)
+    cross = np.flatnonzero(np.abs(phi_c) <= reach)
+    rows = max(1, (1 << 16) // (sub * sub))  # cells per SDF call: bounded memory
+    for a in range(0, len(cross), rows):
+        ia, ib = np.divmod(cross[a:a + rows], n)
+        k = np.arange(sub)
+        xs = u[(ia * sub)[:, None, None] + k[None, :, None]]  # (cells, sub, 1)
+        ys = u[(ib * sub)[:, None, None] + k[None, None, :]]  # (cells, 1, sub)
+        xs, ys = np.broadcast_arrays(xs, ys)
+        phi, _ = g.sdf(np.column_stack([xs.ravel(), ys.ravel()]))
+        counts[cross[a:a + rows]] = (phi >= 0).reshape(-1, sub * sub).sum(axis=1)
+    return counts.reshape(n, n) * (h / sub) ** 2
 
 
 def contact_map(g: RunGeometry, events: dict, t0: float = 0.0) -> dict:

@@ -30,7 +30,6 @@ impacts (`contact_dt`).
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 from typing import Callable
@@ -247,18 +246,22 @@ def rolling_dt(frictions, inertia, r_eff, f_n_max):
 def _elastic_contact_time(k, n, m_eff, v):
     """Duration of an undamped impact at speed v: Hertz (n = 3/2) or harmonic (n = 1)."""
     v = np.asarray(v, dtype=float)
-    if n == 1.0:
-        return np.full_like(v, math.pi * math.sqrt(m_eff / k))
+    if n == 1.0:  # k and m_eff may be arrays broadcasting with v (calibrate_dampings)
+        return np.broadcast_to(np.pi * np.sqrt(np.divide(m_eff, k)), v.shape).astype(float)
     u_max = ((n + 1.0) * m_eff * v * v / (2.0 * k)) ** (1.0 / (n + 1.0))
     return 2.9432 * u_max / v  # Hertz: t_c = 2.9432 u_max / v (Johnson, Contact Mechanics §11)
 
 
 def simulate_impact(law, k, n, c, d, m_eff, v0, steps=2000):
     """Head-on impact at approach speed v0 (m/s), integrated with RK4. c and v0 may be
-    arrays (one impact per broadcast pair, each with its own step). Returns dict of
-    arrays: e, duration (s), peak_force (N), peak_penetration (m)."""
+    arrays (one impact per broadcast pair, each with its own step), and so may k, d and
+    m_eff (calibrate_dampings: several contact types in one batch). Every impact is
+    integrated on its own: its results do not depend on the others in the batch.
+    Returns dict of arrays: e, duration (s), peak_force (N), peak_penetration (m)."""
     c, v0 = np.broadcast_arrays(np.atleast_1d(np.asarray(c, dtype=float)), np.asarray(v0, dtype=float))
     h = 1.5 * _elastic_contact_time(k, n, m_eff, v0) / steps
+    # the products below as the RK4 formulas group them ((0.5 h) k, (h / 6) Σ), once
+    h2, h6 = 0.5 * h, h / 6
     u = np.zeros_like(c)
     w = v0.copy()
     t_end = np.full_like(c, np.nan)
@@ -266,19 +269,21 @@ def simulate_impact(law, k, n, c, d, m_eff, v0, steps=2000):
     f_peak = np.zeros_like(c)
     u_peak = np.zeros_like(c)
 
-    def acc(u, w):
-        return -normal_force(law, u, w, k, n, c, d, m_eff)[0] / m_eff
+    def force(u, w):
+        return normal_force(law, u, w, k, n, c, d, m_eff)[0]
 
+    f = force(u, w)
     t = np.zeros_like(c)
     for _ in range(20 * steps):
-        k1u, k1w = w, acc(u, w)
-        k2u, k2w = w + 0.5 * h * k1w, acc(u + 0.5 * h * k1u, w + 0.5 * h * k1w)
-        k3u, k3w = w + 0.5 * h * k2w, acc(u + 0.5 * h * k2u, w + 0.5 * h * k2w)
-        k4u, k4w = w + h * k3w, acc(u + h * k3u, w + h * k3w)
-        u1 = u + h / 6 * (k1u + 2 * k2u + 2 * k3u + k4u)
-        w1 = w + h / 6 * (k1w + 2 * k2w + 2 * k3w + k4w)
+        k1u, k1w = w, -f / m_eff
+        k2u, k2w = w + h2 * k1w, -force(u + h2 * k1u, w + h2 * k1w) / m_eff
+        k3u, k3w = w + h2 * k2w, -force(u + h2 * k2u, w + h2 * k2w) / m_eff
+        k4u, k4w = w + h * k3w, -force(u + h * k3u, w + h * k3w) / m_eff
+        u1 = u + h6 * (k1u + 2 * k2u + 2 * k3u + k4u)
+        w1 = w + h6 * (k1w + 2 * k2w + 2 * k3w + k4w)
+        f = force(u1, w1)  # the peak's force is the next step's first stage
         live = np.isnan(t_end)
-        f_peak = np.where(live, np.maximum(f_peak, normal_force(law, u1, w1, k, n, c, d, m_eff)[0]), f_peak)
+        f_peak = np.where(live, np.maximum(f_peak, f), f_peak)
         u_peak = np.where(live, np.maximum(u_peak, u1), u_peak)
         ended = live & (u1 < 0.0) & (t > 0.0)
         frac = np.where(ended, u / np.where(u - u1 == 0, 1, u - u1), 0.0)  # linear crossing
@@ -295,21 +300,43 @@ def closed_form_damping(law, e, k, n, m_eff, u_ref):
     return REGISTRY[law].first_guess(e, k, n, m_eff, u_ref)
 
 
-@functools.lru_cache(maxsize=256)
+_DAMPING: dict = {}  # calibrate_damping's results by their arguments
+
+
 def calibrate_damping(law, e, k, n, m_eff, u_ref, d=1.0):
     """Damping c such that a head-on impact at u_ref (m/s) rebounds with restitution e,
     F ≥ 0 clamp included. Bisection on a vectorised batch of impacts."""
-    if not 0.0 < e < 1.0:
-        raise ValueError(f"restitution e = {e} must lie in (0, 1)")
-    c0 = closed_form_damping(law, e, k, n, m_eff, u_ref)
-    lo, hi = 0.0, 8.0 * c0
-    for _ in range(4):
-        grid = np.linspace(lo, hi, 17)
-        got = simulate_impact(law, k, n, grid, d, m_eff, u_ref)["e"]
-        above = got > e  # e falls as c grows
-        i = int(np.argmin(above)) if not above.all() else len(grid) - 1
-        lo, hi = grid[max(i - 1, 0)], grid[i]
-    return 0.5 * (lo + hi)
+    return calibrate_dampings([(law, e, k, n, m_eff, u_ref, d)])[0]
+
+
+def calibrate_dampings(contacts):
+    """calibrate_damping of each (law, e, k, n, m_eff, u_ref, d) in `contacts`, those
+    of one law bisected together, one batch of impacts per round (a preset's two contact
+    types: half the rounds, each ≈ 1500 RK4 steps whose cost is NumPy's per-call
+    overhead). Results are cached and identical to one contact at a time: every
+    impact of a batch is integrated on its own."""
+    todo = {}
+    for args in contacts:
+        law, e = args[0], args[1]
+        if not 0.0 < e < 1.0:
+            raise ValueError(f"restitution e = {e} must lie in (0, 1)")
+        if args not in _DAMPING:
+            todo.setdefault((law, args[3]), []).append(args)  # one batch per law and exponent
+    for (law, n), group in todo.items():
+        group = list(dict.fromkeys(group))
+        col = lambda j: np.array([[a[j] for a in group]]).T  # noqa: E731 — one row per contact
+        e, k, m_eff, u_ref, d = col(1), col(2), col(4), col(5), col(6)
+        lo = [0.0] * len(group)
+        hi = [8.0 * closed_form_damping(law, a[1], a[2], n, a[4], a[5]) for a in group]
+        for _ in range(4):
+            grid = np.array([np.linspace(a, b, 17) for a, b in zip(lo, hi)])
+            got = simulate_impact(law, k, n, grid, d, m_eff, u_ref)["e"]
+            for r, row in enumerate(got > e):  # e falls as c grows
+                i = int(np.argmin(row)) if not row.all() else len(row) - 1
+                lo[r], hi[r] = grid[r, max(i - 1, 0)], grid[r, i]
+        for args, a, b in zip(group, lo, hi):
+            _DAMPING[args] = 0.5 * (a + b)
+    return [_DAMPING[args] for args in contacts]
 
 
 # Impact speeds at which auto_dt looks for the shortest contact, as fractions of v_max.

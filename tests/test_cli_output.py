@@ -52,20 +52,34 @@ def test_run_and_analyse_json_and_the_stored_summary_carry_units(tmp_path):
     assert numbers_without_unit(q) == []
 
 
-def test_progress_bar_says_it_compiles_before_it_counts_simulated_seconds():
+def test_progress_bar_names_the_set_up_phases_and_says_it_compiles_before_it_counts_simulated_seconds():
     seen = []
     text = io.StringIO()
     console = Console(file=text, force_terminal=True, width=100)
 
-    def run(preset, sink, progress):  # as runs.simulation.run: the first report comes after compilation
+    def run(preset, sink, progress, stage):  # as runs.simulation.run: the first report comes after compilation
+        seen.append(text.getvalue())
+        stage("compiling kernels, first neighbour lists…")
         seen.append(text.getvalue())
         progress(0.25)
         progress(0.5)
         return {"done": True}
 
     assert _run_with_bar(run, load_preset(PRESET, {"duration": 0.5}), None, console=console) == {"done": True}
-    assert "compiling kernels" in seen[0] and "0.00/" not in seen[0]
+    assert "setting up 12 balls" in seen[0] and "0.00/" not in seen[0]
+    assert "compiling kernels" in seen[1][len(seen[0]):] and "0.00/" not in seen[1]
     assert "simulating" in text.getvalue() and "0.50/0.5 s" in text.getvalue()
+
+
+def test_run_reports_its_set_up_phases_before_the_first_launch(monkeypatch):
+    from taimill.runs import simulation
+
+    events = []
+    monkeypatch.setattr(simulation.Runner, "run", lambda self, sinks, progress=None: events.append("first launch"))
+    preset = load_preset(PRESET, {"duration": 0.01})
+    simulation.run(preset, stage=events.append)
+    assert events[0].startswith("placing 12 balls") and events[1].startswith("setting up 12 balls")
+    assert events[2].startswith("compiling kernels") and events[3] == "first launch"
 
 
 def presets_listing(capsys) -> dict[str, str]:

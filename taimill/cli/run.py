@@ -23,7 +23,11 @@ def cmd_run(a) -> int:
     from taimill.errors import SimulationUnstable
     from taimill.model.params import load_preset
 
-    preset = load_preset(a.preset, overrides(a))
+    show_bar = not a.json or sys.stderr.isatty()
+    if show_bar:  # reading and checking 10⁵-10⁶ start positions takes seconds
+        preset = _with_status(f"reading {a.preset}…", load_preset, a.preset, overrides(a))
+    else:
+        preset = load_preset(a.preset, overrides(a))
     if a.out:  # its folder must exist and be writable (an existing store: Output refuses it without --overwrite)
         from taimill.model.files import check_output
 
@@ -48,7 +52,6 @@ def cmd_run(a) -> int:
             from taimill.store.sinks import FanOut
 
             sink = FanOut(sink, RerunSink(outputs.add(a.rrd, overwrite=a.overwrite, option="--rrd", what="recording")))
-        show_bar = not a.json or sys.stderr.isatty()
         try:
             if show_bar:
                 summary = _run_with_bar(run, preset, sink)
@@ -71,23 +74,40 @@ def cmd_run(a) -> int:
     return 0
 
 
-def _run_with_bar(run, preset, sink, console=None):
-    """The run under a progress bar on stderr. Until the first launch returns (Taichi
-    start-up and kernel compilation, seconds) the bar says so and pulses; then it counts
-    simulated seconds, its clock restarted so the remaining time is the simulation's."""
+def _bar(console=None):
+    """A transient progress bar on stderr whose remaining-time column stays empty until
+    it has a total."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
     class Remaining(TimeRemainingColumn):
         def render(self, task):
             return TextColumn("").render(task) if task.total is None else super().render(task)
 
-    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[done]}"), Remaining(),
-                  transient=True, console=console or stderr_console()) as bar:
-        task = bar.add_task("compiling kernels…", total=None, done="")
+    return Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[done]}"), Remaining(),
+                    transient=True, console=console or stderr_console())
+
+
+def _with_status(text, fn, *args, console=None):
+    """fn(*args) under a pulsing bar saying `text`."""
+    with _bar(console) as bar:
+        bar.add_task(text, total=None, done="")
+        return fn(*args)
+
+
+def _run_with_bar(run, preset, sink, console=None):
+    """The run under a progress bar on stderr. Until the first launch returns (set-up:
+    summary and store, Taichi's fields, kernel compilation, seconds) the bar names the
+    set-up phase (run's `stage`) and pulses; then it counts simulated seconds, its clock
+    restarted so the remaining time is the simulation's."""
+    with _bar(console) as bar:
+        task = bar.add_task(f"setting up {preset.balls.count} balls…", total=None, done="")
+
+        def stage(text):
+            bar.update(task, description=text, refresh=True)  # drawn now, not at the next tick
 
         def progress(t):
             if bar.tasks[0].total is None:
                 bar.reset(task, total=preset.duration, description="simulating")
             bar.update(task, completed=t, done=f"{t:.2f}/{preset.duration:.1f} s")
 
-        return run(preset, sink, progress=progress)
+        return run(preset, sink, progress=progress, stage=stage)

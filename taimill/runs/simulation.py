@@ -73,16 +73,24 @@ class WholeLaunches(Relay):
         self.sink.finish(summary, status)
 
 
-def run(preset, sink=None, *, duration: float | None = None, progress=None) -> dict:
+def run(preset, sink=None, *, duration: float | None = None, progress=None, stage=None) -> dict:
     """Simulate one preset; streams to `sink`; returns the run summary (docs/outputs.md).
     Ctrl-C and SIGTERM (signals.sigterm_interrupts) end it with status "interrupted",
-    any other error with "failed: …"; the sink is finished either way."""
+    any other error with "failed: …"; the sink is finished either way. `progress(t)`
+    gets the simulated time after every launch, `stage(text)` each set-up phase as it
+    begins (seconds each for 10⁵ balls: the CLI's progress bar shows them)."""
+    stage = stage or (lambda text: None)
     sink = sink or NullSink()
+    n = preset.balls.count
+    if preset.initial_positions is None:
+        stage(f"placing {n} balls…")
     spec = from_preset(preset, duration)
+    stage(f"setting up {n} balls: summary, store, Taichi fields…")
     summary, out = start_point(preset, spec, sink)
     out = WholeLaunches(out)
     t0 = time.perf_counter()
     runner = Runner([spec])
+    stage("compiling kernels, first neighbour lists…")
     status = "complete"
     with sigterm_interrupts():
         try:

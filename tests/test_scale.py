@@ -143,3 +143,35 @@ def test_the_summary_of_a_large_jar_starts_without_sampling_its_whole_floor(monk
     assert len(m.xy_edges) == 257
     assert sum(points) < 0.1 * (256 * 6) ** 2, sum(points)
     assert time.process_time() - t0 < 3.0  # measured 0.3 s CPU (7 s CPU before)
+
+
+def test_taichi_source_positions_are_formatted_once_per_place_with_taichis_own_text():
+    # Taichi formats an excerpt for every AST node of every kernel it transforms (its
+    # compile cost in Python; ≈ 0.4 s CPU of a 10⁵-ball set-up): taimill formats each
+    # place once. Every node of the engine's sources gets Taichi's own text, twice.
+    import ast
+    import types
+
+    from taichi.lang.ast import ast_transformer_utils as utils
+
+    from taimill.physics import contacts, engine, neighbours, runner, walls
+
+    runner.init_taichi()
+    memo = utils.ASTTransformerContext.get_pos_info
+    assert getattr(memo, "memoised", False)
+    nodes = 0
+    for mod in (engine, contacts, neighbours, walls):
+        lines = Path(mod.__file__).read_text().splitlines()
+        for top in ast.parse("\n".join(lines)).body:
+            if not isinstance(top, ast.FunctionDef):
+                continue
+            start = min([top.lineno] + [d.lineno for d in top.decorator_list])
+            src = lines[start - 1:top.end_lineno]
+            ctx = types.SimpleNamespace(file=mod.__file__, src=src, indent=0, lineno_offset=start - 1,
+                                        func=types.SimpleNamespace(func=types.SimpleNamespace(__name__=top.name)))
+            for node in ast.walk(ast.parse("\n".join(src))):
+                if isinstance(node, (ast.stmt, ast.expr)):
+                    want = memo.original(ctx, node)
+                    assert memo(ctx, node) == want and memo(ctx, node) == want
+                    nodes += 1
+    assert nodes > 1000

@@ -175,3 +175,54 @@ def test_taichi_source_positions_are_formatted_once_per_place_with_taichis_own_t
                     assert memo(ctx, node) == want and memo(ctx, node) == want
                     nodes += 1
     assert nodes > 1000
+
+
+def test_writing_a_large_mill_is_one_kernel_launch(monkeypatch):
+    # a to_numpy/from_numpy pair per field was 36 launches of Taichi's copy kernels,
+    # each specialised on its field (compiled, or its AST transformed when cached:
+    # ≈ 1.2 s CPU of a 10⁵-ball set-up), and copied every mill's rows twice
+    from taichi.lang import kernel_impl
+
+    from taimill.model.params import load_preset
+    from taimill.model.spec import from_preset
+    from taimill.physics.mill import write_mill
+    from taimill.physics.runner import Runner
+
+    r = 1e-3
+    x, R = bed(20_000, r)  # parallel mode as at 10⁵ balls, without holding 10⁵ balls' fields for the session
+    ROOT = Path(__file__).resolve().parent.parent
+    preset = load_preset(ROOT / "presets" / "p4-cy-steel.toml")
+    spec = from_preset(preset, 1e-3)
+    n = len(x)
+    spec = spec.replace(radius=np.full(n, r), mass=np.full(n, spec.mass[0]), position=x, velocity=np.zeros((n, 3)),
+                        spin=np.ones((n, 3)), profile=circle(R), height=R)
+    runner = Runner([spec], mode="parallel")
+    F = runner.engine.F
+    launches = []
+    call = kernel_impl.Kernel.__call__
+    monkeypatch.setattr(kernel_impl.Kernel, "__call__", lambda self, *a, **k: (launches.append(self.func.__name__),
+                                                                                call(self, *a, **k))[1])
+    t0 = time.process_time()
+    write_mill(F, 0, spec)
+    took = time.process_time() - t0
+    assert launches == ["_load_mill"], launches
+    assert took < 3.0, took  # measured 0.05 s CPU once compiled
+    assert np.array_equal(F.x.to_numpy()[0, :n], x) and np.array_equal(F.s.to_numpy()[0, :n], spec.spin)
+    assert (F.r.to_numpy()[0, n:] == 1.0).all() and (F.slot_mask.to_numpy()[0] == 0).all()
+    assert np.array_equal(F.inv_i.to_numpy()[0, :n], 1.0 / spec.inertia)
+
+
+def test_a_presets_two_contact_types_are_calibrated_in_one_batch(monkeypatch):
+    # the bisection's impacts cost NumPy's per-call overhead (≈ 1500 RK4 steps a round):
+    # both contact types in one batch per round halve it (≈ 1 s CPU of every run's set-up)
+    from taimill.model import laws
+
+    ROOT = Path(__file__).resolve().parent.parent
+    calls = []
+    simulate = laws.simulate_impact
+    monkeypatch.setattr(laws, "simulate_impact", lambda *a, **k: (calls.append(k.get("steps", 2000)), simulate(*a, **k))[1])
+    monkeypatch.setattr(laws, "_DAMPING", {})
+    p = load_preset(ROOT / "presets" / "p4-cy-steel.toml", {"law": "hertz-mindlin"})
+    assert calls.count(2000) == 4, calls  # 4 bisection rounds, both contact types in each
+    c = [laws.calibrate_damping(q.law_id, q.e, q.k, q.n, q.m_eff, q.u_ref, q.d) for q in (p.ball_ball, p.ball_wall)]
+    assert calls.count(2000) == 4 and c == [p.ball_ball.c, p.ball_wall.c]  # cached

@@ -24,7 +24,8 @@ def cmd_run(a) -> int:
     from taimill.model.params import load_preset
 
     show_bar = not a.json or sys.stderr.isatty()
-    if show_bar:  # reading and checking 10⁵-10⁶ start positions takes seconds
+    if sys.stderr.isatty():  # reading and checking 10⁵-10⁶ start positions takes seconds (on a
+        # terminal only: elsewhere the bar's end leaves a blank line before a one-line error)
         preset = _with_status(f"reading {a.preset}…", load_preset, a.preset, overrides(a))
     else:
         preset = load_preset(a.preset, overrides(a))

@@ -274,24 +274,30 @@ def simulate_impact(law, k, n, c, d, m_eff, v0, steps=2000):
 
     f = force(u, w)
     t = np.zeros_like(c)
+    live = np.ones(c.shape, dtype=bool)  # not yet ended
     for _ in range(20 * steps):
-        k1u, k1w = w, -f / m_eff
-        k2u, k2w = w + h2 * k1w, -force(u + h2 * k1u, w + h2 * k1w) / m_eff
-        k3u, k3w = w + h2 * k2w, -force(u + h2 * k2u, w + h2 * k2w) / m_eff
-        k4u, k4w = w + h * k3w, -force(u + h * k3u, w + h * k3w) / m_eff
-        u1 = u + h6 * (k1u + 2 * k2u + 2 * k3u + k4u)
+        # RK4 stages (k1u = w); each stage's velocity is the next stage's position slope
+        k1w = -f / m_eff
+        k2u = w + h2 * k1w
+        k2w = -force(u + h2 * w, k2u) / m_eff
+        k3u = w + h2 * k2w
+        k3w = -force(u + h2 * k2u, k3u) / m_eff
+        k4u = w + h * k3w
+        k4w = -force(u + h * k3u, k4u) / m_eff
+        u1 = u + h6 * (w + 2 * k2u + 2 * k3u + k4u)
         w1 = w + h6 * (k1w + 2 * k2w + 2 * k3w + k4w)
         f = force(u1, w1)  # the peak's force is the next step's first stage
-        live = np.isnan(t_end)
         f_peak = np.where(live, np.maximum(f_peak, f), f_peak)
         u_peak = np.where(live, np.maximum(u_peak, u1), u_peak)
         ended = live & (u1 < 0.0) & (t > 0.0)
-        frac = np.where(ended, u / np.where(u - u1 == 0, 1, u - u1), 0.0)  # linear crossing
-        t_end = np.where(ended, t + frac * h, t_end)
-        v_end = np.where(ended, w + frac * (w1 - w), v_end)
+        if ended.any():  # the crossing of the impacts ending in this step
+            frac = np.where(ended, u / np.where(u - u1 == 0, 1, u - u1), 0.0)  # linear crossing
+            t_end = np.where(ended, t + frac * h, t_end)
+            v_end = np.where(ended, w + frac * (w1 - w), v_end)
+            live = np.isnan(t_end)
+            if not live.any():
+                break
         u, w, t = u1, w1, t + h
-        if not np.isnan(t_end).any():
-            break
     return {"e": -v_end / v0, "duration": t_end, "peak_force": f_peak, "peak_penetration": u_peak}
 
 

@@ -961,7 +961,7 @@ def print_dense_row(r: dict):
               f" peak RSS {r['rss_mib']:.0f} MiB = 300 MB + {(r['rss_mib'] * 2**20 - 300e6) / n / 1024:.2f} KiB/ball",
               flush=True)
         print(f"  {'':18} {'':9} set-up {r['setup']:.1f} s wall, {r['setup_cpu']:.1f} s CPU (interpreter start to the"
-              f" first step done; issue 16 target ≤ 10 s); whole process {r['cpu']:.1f} s CPU", flush=True)
+              f" first step done; issue 16: ≤ 10 s at 10⁵ balls); whole process {r['cpu']:.1f} s CPU", flush=True)
         return
     cpu = r["loop_cpu"] if r["code"] == "LIGGGHTS" else r["cpu"]
     wall = r["loop_wall"] if r["code"] == "LIGGGHTS" else r["wall"]

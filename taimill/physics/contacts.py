@@ -9,6 +9,13 @@ energy. Walls are owned by the ball. Open events live in per-ball slots flagged 
 bitmask: bits 0-2 the walls, 3.. the partners. An event opens at the first step with
 overlap u > 0 — its onset normal speed u̇_n and slip u̇_t are taken from that step's
 state, before its first force acts — and closes at the first step without overlap.
+
+A slot holds only the index of its event's row in the mill's pool of open-contact rows
+(state.pool_rows: at most 6 a ball in large mills; a dense bed has 2-3, not 15). A contact that opens takes a released row from the pool's free stack, else a
+new one (atomic pop and count: in parallel mode the balls of the mill do it
+concurrently); rows are released only after the force pass, by release_rows in the
+integration pass, so pops and pushes never race. Which row a contact gets changes
+nothing but where its sums are kept.
 """
 
 import taichi as ti
@@ -41,21 +48,65 @@ def contact_response(F: ti.template(), b, ct: ti.template(), u, nrm, vrel, m_eff
 
 
 @ti.func
-def book_contact(F: ti.template(), b, i, k, is_new, t, u, udot, slip, p, fn, dn, dtf):
-    """Open (is_new) or update the event in slot k of ball i. Returns the contact's
+def slot_row(F: ti.template(), b, i, k, is_new):
+    """Pool row of the event in slot k of ball i: its own if open, else a row taken
+    from the free stack; -1 (and POOL_FULL flagged) if none is left."""
+    row = -1
+    if is_new:
+        e = ti.atomic_sub(F.pool_top[b], 1) - 1  # a released row first
+        if e >= 0:
+            row = F.pool_free[b, e]
+        else:  # the stack is empty (its top goes negative until release_rows): a new row
+            row = ti.atomic_add(F.pool_used[b], 1)
+            if row >= F.pool_capacity:
+                row = -1
+                F.status[b] = S.POOL_FULL
+                F.bad_ball[b] = i
+        if row >= 0:
+            F.slot_row[b, i, k] = row
+    else:
+        row = F.slot_row[b, i, k]
+    return row
+
+
+@ti.func
+def pool_settle(F: ti.template(), b):
+    """After the force pass, before release_rows: the stack is empty if pops ran past it."""
+    if F.pool_top[b] < 0:
+        F.pool_top[b] = 0
+
+
+@ti.func
+def release_rows(F: ti.template(), b, i):
+    """Give the pool rows of ball i's events closed in this step's force pass back to
+    the free stack (a pass without pops: pool_settle first)."""
+    gone = F.slot_closed[b, i]
+    if gone:
+        k = 0
+        while gone:
+            if gone & 1:
+                F.pool_free[b, ti.atomic_add(F.pool_top[b], 1)] = F.slot_row[b, i, k]
+            gone >>= 1
+            k += 1
+        F.slot_closed[b, i] = 0
+
+
+@ti.func
+def book_contact(F: ti.template(), b, row, is_new, t, u, udot, slip, p, fn, dn, dtf):
+    """Open (is_new) or update the event in pool row `row`. Returns the contact's
     class for the mechanism ledger: an impact while its onset normal speed reaches the
     stress-event threshold and it is younger than the impact age (model/mechanisms.py)."""
     impact = False
     if is_new:
-        F.slot[b, i, k] = ti.Vector([t, udot, slip.norm(), p[0], p[1], p[2], fn, u, dn, dtf])
+        F.pool[b, row] = ti.Vector([t, udot, slip.norm(), p[0], p[1], p[2], fn, u, dn, dtf])
         impact = udot >= F.stress_un[b]
     else:
-        q = F.slot[b, i, k]
+        q = F.pool[b, row]
         q[S.SLOT_FPEAK] = ti.max(q[S.SLOT_FPEAK], fn)
         q[S.SLOT_UPEAK] = ti.max(q[S.SLOT_UPEAK], u)
         q[S.SLOT_DN] += dn
         q[S.SLOT_DT] += dtf
-        F.slot[b, i, k] = q
+        F.pool[b, row] = q
         impact = q[S.SLOT_UN] >= F.stress_un[b] and t - q[S.SLOT_T0] <= F.impact_age[b]
     return impact
 
@@ -79,7 +130,7 @@ def partner_slot(F: ti.template(), b, i, j, taken):
 
 @ti.func
 def emit_event(F: ti.template(), b, i, k, t):
-    q = F.slot[b, i, k]
+    q = F.pool[b, F.slot_row[b, i, k]]
     mi = F.m[b, i]
     body_j, kind, m_eff = -1.0 - k, 1.0, mi
     if k >= S.WALLS:
@@ -108,8 +159,10 @@ def emit_event(F: ti.template(), b, i, k, t):
 
 @ti.func
 def close_events(F: ti.template(), b, i, was_open, seen, t):
-    """Contacts open before this step and not seen in it have separated."""
+    """Contacts open before this step and not seen in it have separated: their events
+    are written, their rows released after the pass (release_rows)."""
     gone = was_open & ~seen
+    F.slot_closed[b, i] = gone
     k = 0
     while gone:
         if gone & 1:
@@ -166,8 +219,11 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
                 F.status[b] = S.SLOTS_FULL
                 F.bad_ball[b] = i
             else:
-                bit = 1 << k
-                impact = book_contact(F, b, i, k, (was_open & bit) == 0, t, u, udot, slip, xi + ai, fn, dn, dtf)
+                is_new = (was_open & (1 << k)) == 0
+                row = slot_row(F, b, i, k, is_new)
+                if row >= 0:
+                    bit = 1 << k
+                    impact = book_contact(F, b, row, is_new, t, u, udot, slip, xi + ai, fn, dn, dtf)
     return f, tq, diss_n, diss_t, impact, stored, bit
 
 
@@ -207,8 +263,12 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
                 drive += mr.dot(wz) * dt
             diss += dn + dtf
             stored += el
-            seen |= 1 << wall
-            impact = book_contact(F, b, i, wall, (was_open & (1 << wall)) == 0, t, u, udot, slip, p, fn, dn, dtf)
+            is_new = (was_open & (1 << wall)) == 0
+            row = slot_row(F, b, i, wall, is_new)
+            impact = False
+            if row >= 0:
+                seen |= 1 << wall
+                impact = book_contact(F, b, row, is_new, t, u, udot, slip, p, fn, dn, dtf)
             book_mechanism(F, b, i, 1 + wall, impact, dn, dtf)
     for q in range(F.nbr_count[b, i]):
         fj, tj, dnj, dtj, impact, ej, bit = ball_pair(F, b, i, F.nbr[b, i, q], was_open, seen, t, w, dt)

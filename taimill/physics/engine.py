@@ -14,7 +14,7 @@ import taichi as ti
 
 from taimill.physics import state as S
 from taimill.physics.neighbours import rebuild_parallel, rebuild_serial
-from taimill.physics.contacts import ball_forces
+from taimill.physics.contacts import ball_forces, pool_settle, release_rows
 from taimill.physics.frame import drive_turning, ramp_at, ramp_turn, wall_velocity_ground
 from taimill.physics.integrator import integrate
 
@@ -95,8 +95,10 @@ def step_mill(F: ti.template(), b, use_grid: ti.template()):
         ball_forces(F, b, i, t, dr, dt)
     if st % F.frame_every[b] == 0:
         snapshot(F, b, t, dr)
+    pool_settle(F, b)
     for i in range(F.n_balls[b]):
         integrate(F, b, i, dr, dt)
+        release_rows(F, b, i)
     F.step[b] = st + 1
 
 
@@ -156,8 +158,10 @@ def integrate_parallel(F: ti.template()):
     dt = F.dt[0]
     t = F.step[0] * dt
     dr = drive(F, 0, t)
+    pool_settle(F, 0)
     for i in range(F.n_balls[0]):
         integrate(F, 0, i, dr, dt)
+        release_rows(F, 0, i)  # after the force pass, the only one that takes rows
     F.step[0] += 1
 
 
@@ -207,7 +211,7 @@ class Engine:
     LARGE_FRAME_BYTES = 16 << 20  # frames buffered in parallel mode (at least one)
     LARGE_EVENT_BYTES = 32 << 20  # events buffered in parallel mode, half of them the per-step margin
 
-    def __init__(self, batch, balls, *, mode="fused", use_grid=True, grid_cells=1, frame_capacity=256):
+    def __init__(self, batch, balls, *, mode="fused", use_grid=True, grid_cells=1, frame_capacity=256, pool=None):
         if mode == "parallel" and batch != 1:
             raise ValueError("parallel mode runs one mill")
         self.mode, self.use_grid = mode, use_grid or mode == "parallel"
@@ -222,7 +226,7 @@ class Engine:
             events = max(self.EVENT_ROWS, min(events, self.LARGE_EVENT_BYTES // (8 * S.NCOL)))
             self.margin = min(self.margin, events // 2)
             frames = int(max(1, min(frame_capacity, self.LARGE_FRAME_BYTES // (72 * n))))
-        self.F = S.Fields(batch, n, events, frames, grid_cells)
+        self.F = S.Fields(batch, n, events, frames, grid_cells, pool)
 
     @property
     def B(self):

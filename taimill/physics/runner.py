@@ -41,18 +41,19 @@ FRAME_CAPACITY = (256, 32768)
 _engines: dict = {}
 
 
-def _engine(batch, balls, mode, use_grid, cells, frames=FRAME_CAPACITY[0]) -> Engine:
+def _engine(batch, balls, mode, use_grid, cells, frames=FRAME_CAPACITY[0], pool=None) -> Engine:
     """Engines are reused within a process: new fields mean new kernel instances, and
     compiling those costs ≈ 1.3 s each. Ball counts with the same padded row length
     (Engine.BALL_PAD) share one engine: its fields are identical; so do frame
     capacities up to one of an engine already made."""
     balls = -(-balls // Engine.BALL_PAD) * Engine.BALL_PAD
     frames = frames if mode == "fused" else 8
-    for (b, n, m, g, c, f), engine in _engines.items():
-        if (b, n, m, g, c) == (batch, balls, mode, use_grid, cells) and f >= frames:
+    for (b, n, m, g, c, p, f), engine in _engines.items():
+        if (b, n, m, g, c, p) == (batch, balls, mode, use_grid, cells, pool) and f >= frames:
             return engine
-    key = (batch, balls, mode, use_grid, cells, frames)
-    _engines[key] = Engine(batch, balls, mode=mode, use_grid=use_grid, grid_cells=cells, frame_capacity=frames)
+    key = (batch, balls, mode, use_grid, cells, pool, frames)
+    _engines[key] = Engine(batch, balls, mode=mode, use_grid=use_grid, grid_cells=cells, frame_capacity=frames,
+                           pool=pool)
     return _engines[key]
 
 
@@ -154,12 +155,14 @@ def events_table(raw: np.ndarray) -> dict[str, np.ndarray]:
             for name, (dtype, _, _) in EVENT_COLUMNS.items()}
 
 
-def status_message(code: int, ball: int, t: float, dt: float) -> str:
+def status_message(code: int, ball: int, t: float, dt: float, pool: int | None = None) -> str:
     what = {
         S.NONFINITE: f"ball {ball} reached a non-finite or runaway state",
         S.ESCAPED: f"ball {ball} left the jar through a wall",
         S.SLOTS_FULL: f"ball {ball} has more than {S.PARTNER_SLOTS} simultaneous contacts",
         S.LIST_FULL: f"ball {ball} has more than {S.NEIGHBOURS} neighbours within the skin",
+        S.POOL_FULL: f"ball {ball} opened a contact beyond the mill's open-contact pool"
+                     f"{f' of {pool} rows' if pool else ''}",
     }[code]
     return f"unstable at t = {t:.6f} s: {what}; the time step dt = {dt:.3g} s is too large for the contact stiffness, or the input is unphysical"
 
@@ -167,13 +170,15 @@ def status_message(code: int, ball: int, t: float, dt: float) -> str:
 class Runner:
     """Advances a batch of mills to their step targets, streaming to one sink each."""
 
-    def __init__(self, specs: list[MillSpec], *, mode: str | None = None, use_grid: bool = True):
+    def __init__(self, specs: list[MillSpec], *, mode: str | None = None, use_grid: bool = True,
+                 pool: int | None = None):
+        """`pool`: rows of each mill's open-contact pool (tests; default state.pool_rows)."""
         init_taichi()
         self.specs = specs
         n = max(s.n for s in specs)
         mode = mode or ("parallel" if len(specs) == 1 and n > PARALLEL_ABOVE else "fused")
         cells = 1 << max(grid_cells_for(s) for s in specs).bit_length()
-        self.engine = _engine(len(specs), n, mode, use_grid, cells, frame_capacity(specs))
+        self.engine = _engine(len(specs), n, mode, use_grid, cells, frame_capacity(specs), pool)
         every = min(s.frame_every for s in specs)
         room = (self.engine.F.frame_capacity - 2) * every
         if mode == "fused":
@@ -208,7 +213,8 @@ class Runner:
                 sink.frames(frames)
                 sink.energy({"time": frames["time"], **{k: ledger[:, c] for c, k in enumerate(S.LEDGER_FIELDS)}})
             code = int(self.engine.F.status[b])
-            faults.append(None if code == S.OK else status_message(code, int(self.engine.F.bad_ball[b]), self.time(b), self.specs[b].dt))
+            faults.append(None if code == S.OK else status_message(code, int(self.engine.F.bad_ball[b]), self.time(b), self.specs[b].dt,
+                                                                     self.engine.F.pool_capacity))
         return faults
 
     def run(self, sinks, progress=None):

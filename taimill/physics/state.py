@@ -17,7 +17,7 @@ WALLS = 3
 PARTNER_SLOTS = 12
 SLOTS = WALLS + PARTNER_SLOTS
 
-# Per-slot event accumulators (one open collision event per slot).
+# Event accumulators of an open contact: one row of the mill's contact pool per open slot.
 SLOT_T0, SLOT_UN, SLOT_UT, SLOT_PX, SLOT_PY, SLOT_PZ, SLOT_FPEAK, SLOT_UPEAK, SLOT_DN, SLOT_DT = range(10)
 SLOT_DATA = 10
 
@@ -39,8 +39,24 @@ NMECH = len(MECHANISM_COLUMNS)
 # Verlet list length per ball (equal spheres within a skin of 0.1 r: at most ~14).
 NEIGHBOURS = 32
 
+# Open-contact pool: rows per mill. A mill of n balls gets n·SLOTS rows (it can never
+# run out) up to POOL_FLOOR rows, above that POOL_PER_BALL·n: each contact has one owner,
+# and a close-packed bed of equal spheres (12 contacts a ball, the densest there is)
+# owns at most 6 per ball, a wall contact replacing at least one missing partner at
+# the boundary (the dense bed of scripts/bench.py holds 2-3). A pool that runs out
+# stops the run (POOL_FULL). (A sparse pool of n·SLOTS rows, ti.root.pointer blocks,
+# took memory only for rows in use; it was dropped after one unexplained segfault.)
+POOL_FLOOR = 4096
+POOL_PER_BALL = 6
+
+
+def pool_rows(balls: int) -> int:
+    """Rows of the open-contact pool of a mill with room for `balls` balls."""
+    return min(balls * SLOTS, max(POOL_FLOOR, POOL_PER_BALL * balls))
+
+
 # Status codes.
-OK, NONFINITE, ESCAPED, SLOTS_FULL, LIST_FULL = 0, 1, 2, 3, 4
+OK, NONFINITE, ESCAPED, SLOTS_FULL, LIST_FULL, POOL_FULL = 0, 1, 2, 3, 4, 5
 
 MAX_PIECES = 32  # boundary pieces of a jar profile (T: 12)
 CONTACT_TYPES = 2  # 0 ball-ball, 1 ball-wall
@@ -48,9 +64,12 @@ CONTACT_TYPES = 2  # 0 ball-ball, 1 ball-wall
 
 @ti.data_oriented
 class Fields:
-    def __init__(self, batch: int, balls: int, event_capacity: int, frame_capacity: int, grid_cells: int):
+    def __init__(self, batch: int, balls: int, event_capacity: int, frame_capacity: int, grid_cells: int,
+                 pool: int | None = None):
         B, N = batch, balls
+        P = pool_rows(N) if pool is None else pool
         self.B, self.N, self.event_capacity, self.frame_capacity = B, N, event_capacity, frame_capacity
+        self.pool_capacity = P
         self.grid_cells = grid_cells
         f64, i32, i64 = ti.f64, ti.i32, ti.i64
         vec3 = ti.types.vector(3, f64)
@@ -113,10 +132,15 @@ class Fields:
         self.status = ti.field(i32, B)
         self.bad_ball = ti.field(i32, B)
 
-        # ---- open contacts [B, N, SLOTS]
+        # ---- open contacts [B, N, SLOTS], their event data in a pool of rows [B, P]
         self.slot_mask = ti.field(i32, (B, N))  #: bit k set: slot k holds an open event
+        self.slot_closed = ti.field(i32, (B, N))  #: bit k set: slot k closed this step, its row not yet released
         self.slot_partner = ti.field(i32, (B, N, SLOTS))  #: partner ball of slot k ≥ WALLS
-        self.slot = ti.Vector.field(SLOT_DATA, f64, (B, N, SLOTS))
+        self.slot_row = ti.field(i32, (B, N, SLOTS))  #: pool row of open slot k
+        self.pool = ti.Vector.field(SLOT_DATA, f64, (B, P))  #: event accumulators of an open contact
+        self.pool_free = ti.field(i32, (B, P))  #: stack of released rows, [0, pool_top)
+        self.pool_top = ti.field(i32, B)
+        self.pool_used = ti.field(i32, B)  #: rows ever handed out: [0, pool_used) are in use or on the stack
 
         # ---- spatial hash [B, cells] and [B, N]
         self.cell_count = ti.field(i32, (B, grid_cells))

@@ -119,6 +119,23 @@ def _memoise_source_positions():
     ctx.get_pos_info = get_pos_info
 
 
+M_MMAP_THRESHOLD = -3  # glibc's mallopt parameter
+
+
+def return_freed_memory():
+    """Fix glibc's mmap threshold at its initial 128 KiB. By default the first free of a
+    large block raises it (up to 32 MB), and from then on the drains' NumPy blocks
+    come from the heap and stay resident after they are freed: the peak RSS of a
+    `taimill run` of 10⁵ balls was 35 MB higher. Results are unaffected."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:
+            ctypes.CDLL(None).mallopt(M_MMAP_THRESHOLD, 128 << 10)
+        except (OSError, AttributeError):  # not glibc
+            pass
+
+
 def init_taichi(threads: int | None = None):
     """ti.init once per process (a second call invalidates fields). Serial loops and
     f64 make results bit-identical run to run (tests/test_runs.py); without fast-math the
@@ -130,6 +147,7 @@ def init_taichi(threads: int | None = None):
         os.environ["TI_CPU_MAX_NUM_THREADS"] = str(int(threads))
     clear_stale_cache_lock()
     _memoise_source_positions()
+    return_freed_memory()
     kw = {}
     # Taichi's own warnings are about its compile cache (a lock held by another taimill
     # starting at the same moment, or left by a killed one): the run is unaffected, only

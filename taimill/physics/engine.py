@@ -202,7 +202,8 @@ class Engine:
     Output buffers are sized to about BUFFER_BYTES per mill. In parallel mode (10⁵-10⁶
     balls) they are bounded by LARGE_FRAME_BYTES and LARGE_EVENT_BYTES instead of
     growing with N: the launcher drains after every launch, and a launch stops at a
-    full frame buffer (one frame of 10⁶ balls is 72 MB).
+    full frame buffer (one frame of 10⁶ balls is 72 MB). `pool`: rows of each mill's
+    open-contact pool (default state.pool_rows; tests force a small one).
     """
 
     BALL_PAD = 8  # f64 × 8 = 64 B

@@ -184,6 +184,34 @@ def book_mechanism(F: ti.template(), b, i, kind, impact, dn, dtf):
 
 
 @ti.func
+def partner_share(F: ti.template(), b, i, j):
+    """Slot of owner j holding its contact with ball i > j booked earlier in this step,
+    whose force and torque on i it left there (share_with_partner); -1 if none or if
+    the balls' forces are not computed in index order (F.share_pairs: the fused mode)."""
+    found = -1
+    if ti.static(F.share_pairs):
+        if i > j:
+            mask = F.slot_mask[b, j] >> S.WALLS
+            k = S.WALLS
+            while mask:
+                if mask & 1 and F.slot_partner[b, j, k] == i:
+                    found = k
+                k += 1
+                mask >>= 1
+    return found
+
+
+@ti.func
+def share_with_partner(F: ti.template(), b, i, k, f, tq):
+    """Leave the force and torque on the partner of ball i's slot k for its own visit
+    (partner_share). The pair function is antisymmetric to the bit, so these are the
+    values its visit would compute: -F and a_j × (-F)."""
+    if ti.static(F.share_pairs):
+        F.pair_f[b, i, k] = f
+        F.pair_tq[b, i, k] = tq
+
+
+@ti.func
 def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
     """Contact of balls i and j: (force on i, torque on i, dissipated normal and by
     friction, whether it is an impact, stored, slot bit of i's event or 0). Events and
@@ -195,7 +223,13 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
     ri, rj = F.r[b, i], F.r[b, j]
     d = xj - xi
     dist2 = d.norm_sqr()
-    if dist2 < (ri + rj) * (ri + rj):
+    touching = dist2 < (ri + rj) * (ri + rj)
+    shared = -1
+    if touching:
+        shared = partner_share(F, b, i, j)
+    if shared >= 0:  # the owner j computed this contact in this step
+        f, tq = F.pair_f[b, j, shared], F.pair_tq[b, j, shared]
+    elif touching:
         dist = ti.sqrt(dist2)
         u = ri + rj - dist
         nrm = d / dist
@@ -207,9 +241,11 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
         inv_mass_t = (1.0 / mi + 1.0 / mj) + (ai.norm_sqr() * F.inv_i[b, i] + aj.norm_sqr() * F.inv_i[b, j])
         fc, udot, slip, fn, dn, dtf, el = contact_response(F, b, 0, u, nrm, vrel, mi * mj / (mi + mj), inv_mass_t, dt)
         f, tq = fc, ai.cross(fc)
+        m_roll = ti.Vector([0.0, 0.0, 0.0])  # rolling-resistance torque on i; on j it is -m_roll to the bit
         if F.mu_r[b, 0] > 0.0:  # off: not computed, runs without it stay bit-identical
             mr, d_roll = rolling_torque(F.s[b, i] - F.s[b, j], nrm, fn, F.mu_r[b, 0], ri * rj / (ri + rj),
                                     F.inv_i[b, i] + F.inv_i[b, j], dt)
+            m_roll = mr
             tq += mr
             dtf += d_roll
         if i < j:
@@ -224,6 +260,7 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
                 if row >= 0:
                     bit = 1 << k
                     impact = book_contact(F, b, row, is_new, t, u, udot, slip, xi + ai, fn, dn, dtf)
+                    share_with_partner(F, b, i, k, -fc, aj.cross(-fc) - m_roll)
     return f, tq, diss_n, diss_t, impact, stored, bit
 
 

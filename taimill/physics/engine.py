@@ -227,7 +227,7 @@ class Engine:
             events = max(self.EVENT_ROWS, min(events, self.LARGE_EVENT_BYTES // (8 * S.NCOL)))
             self.margin = min(self.margin, events // 2)
             frames = int(max(1, min(frame_capacity, self.LARGE_FRAME_BYTES // (72 * n))))
-        self.F = S.Fields(batch, n, events, frames, grid_cells, pool)
+        self.F = S.Fields(batch, n, events, frames, grid_cells, pool, share_pairs=mode == "fused")
 
     @property
     def B(self):

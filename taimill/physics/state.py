@@ -65,9 +65,12 @@ CONTACT_TYPES = 2  # 0 ball-ball, 1 ball-wall
 @ti.data_oriented
 class Fields:
     def __init__(self, batch: int, balls: int, event_capacity: int, frame_capacity: int, grid_cells: int,
-                 pool: int | None = None):
+                 pool: int | None = None, share_pairs: bool = False):
         B, N = batch, balls
         P = pool_rows(N) if pool is None else pool
+        # the balls' forces are computed one after another in index order (fused mode):
+        # a pair's owner leaves the partner's force and torque (contacts.partner_share)
+        self.share_pairs = share_pairs
         self.B, self.N, self.event_capacity, self.frame_capacity = B, N, event_capacity, frame_capacity
         self.pool_capacity = P
         self.grid_cells = grid_cells
@@ -141,6 +144,9 @@ class Fields:
         self.pool_free = ti.field(i32, (B, P))  #: stack of released rows, [0, pool_top)
         self.pool_top = ti.field(i32, B)
         self.pool_used = ti.field(i32, B)  #: rows ever handed out: [0, pool_used) are in use or on the stack
+        shared = (B, N, SLOTS) if share_pairs else (1, 1, 1)
+        self.pair_f = ti.field(vec3, shared)  #: N, force of this step on the partner of slot k
+        self.pair_tq = ti.field(vec3, shared)  #: N m, torque of this step on the partner of slot k
 
         # ---- spatial hash [B, cells] and [B, N]
         self.cell_count = ti.field(i32, (B, grid_cells))

@@ -91,6 +91,11 @@ def test_regime_map_colours_cells_and_draws_the_boundaries():
     k, mu = mu_line.get_xdata(), mu_line.get_ydata()
     np.testing.assert_allclose(mu, [pinning_friction(x, 0.125, 0.0325, 0.006) for x in k])
     assert ax.get_xlim()[0] > ax.get_xlim()[1]  # K falls to the right
+    # --mu sets every contact's friction: the axis says so; a coated jar's sweep
+    # (--pair-ball-wall, ball-ball friction fixed) names the wall only
+    assert ax.get_ylabel().startswith("friction μ of every contact")
+    coated = [r | {"mu": 1.0, "mu_d": 0.8} for r in rolled]
+    assert regime_map(coated, "test").axes[0].get_ylabel().startswith("ball-wall friction μ")
 
 
 def test_graphite_bed_rolling_in_place_is_a_rolling_bed_not_a_pinned_ring(tmp_path):

@@ -124,7 +124,7 @@ def cmd_sweep(a) -> int:
     if a.map:
         from taimill.figures.regime_map import save_regime_map
 
-        save_regime_map(rows, a.map, f"{a.preset}: regimes over K and ball-wall friction μ")
+        save_regime_map(rows, a.map, f"{a.preset}: regimes over K and friction μ")
     if a.json:
         print(json.dumps([_plain(with_units(r)) for r in rows]))  # each row a summary object with its units
         for p in peaks:

@@ -57,6 +57,16 @@ def _edges(v: np.ndarray, log: bool) -> np.ndarray:
     return np.exp(e) if log else e
 
 
+def friction_axis_label(rows: list[dict]) -> str:
+    """The μ axis is the ball-wall μ_s: named for every contact when each row's
+    ball-ball friction equals it (`taimill sweep --mu` sets both), else for the wall."""
+    def same(a, b):
+        return a is None or b is None or math.isclose(a, b)
+
+    both = all(same(r.get("mu"), r.get("mu_wall")) and same(r.get("mu_d"), r.get("mu_d_wall")) for r in rows)
+    return "friction μ of every contact (μ_s = μ_d)" if both else "ball-wall friction μ (μ_s = μ_d)"
+
+
 def regime_map(rows: list[dict], title: str = ""):
     """The figure (matplotlib) of the sweep rows (taimill sweep table rows)."""
     import matplotlib
@@ -70,6 +80,7 @@ def regime_map(rows: list[dict], title: str = ""):
     r0 = rows[0]
     Rp, R, r = r0["plate_radius"], r0["jar_radius"], r0["ball_radius"]
     mu_rs = sorted({k[0] for k in cells})
+    ylabel = friction_axis_label(rows)
     fig, axes = plt.subplots(1, len(mu_rs), figsize=(6.4 * len(mu_rs), 5.2), squeeze=False)
     names = list(COLOURS)
     cmap = ListedColormap([COLOURS[n] for n in names])
@@ -109,7 +120,7 @@ def regime_map(rows: list[dict], title: str = ""):
         ax.set_ylim(_edges(mus, True)[0], _edges(mus, True)[-1])
         ax.set_xlim(_edges(ks, False)[-1], _edges(ks, False)[0])  # K falling to the right, as the thesis draws it
         ax.set_xlabel("K = ω/Ω + 1")
-        ax.set_ylabel("ball-wall friction μ (μ_s = μ_d)")
+        ax.set_ylabel(ylabel)
         ax.set_title(f"μ_r = {mu_r:g}" if len(mu_rs) > 1 or mu_r else "no rolling resistance", fontsize=10)
         handles = [Patch(color=COLOURS[n], label=n) for n in MAP_REGIMES]
         handles += [plt.Line2D([], [], color="k", ls="-", label="contours: stress-event power"),

@@ -182,8 +182,8 @@ def book_mechanism(F: ti.template(), b, i, kind, impact, dn, dtf):
     pass, so a frame's mechanism columns include its own step, which `dissipated`
     books after the frame: they differ by at most one step's dissipation."""
     c = kind * 4 + ti.select(impact, 0, 2)
-    F.mech[b, i, c] += dn
-    F.mech[b, i, c + 1] += dtf
+    F.mech[b, i, c] = F.mech[b, i, c] + dn  # one writer per ball: no atomic (integrator.integrate)
+    F.mech[b, i, c + 1] = F.mech[b, i, c + 1] + dtf
 
 
 @ti.func

@@ -16,7 +16,7 @@ from taimill.physics import state as S
 from taimill.physics.neighbours import rebuild_parallel, rebuild_serial
 from taimill.physics.contacts import ball_forces, pool_settle, release_rows
 from taimill.physics.frame import drive_turning, ramp_at, ramp_turn, wall_velocity_ground
-from taimill.physics.integrator import integrate
+from taimill.physics.integrator import frame_acceleration, integrate
 
 PAD = 512
 
@@ -96,8 +96,9 @@ def step_mill(F: ti.template(), b, use_grid: ti.template()):
     if st % F.frame_every[b] == 0:
         snapshot(F, b, t, dr)
     pool_settle(F, b)
+    a_frame = frame_acceleration(F, b, dr)
     for i in range(F.n_balls[b]):
-        integrate(F, b, i, dr, dt)
+        integrate(F, b, i, dr, dt, a_frame)
         release_rows(F, b, i)
     F.step[b] = st + 1
 
@@ -159,8 +160,9 @@ def integrate_parallel(F: ti.template()):
     t = F.step[0] * dt
     dr = drive(F, 0, t)
     pool_settle(F, 0)
+    a_frame = frame_acceleration(F, 0, dr)
     for i in range(F.n_balls[0]):
-        integrate(F, 0, i, dr, dt)
+        integrate(F, 0, i, dr, dt, a_frame)
         release_rows(F, 0, i)  # after the force pass, the only one that takes rows
     F.step[0] += 1
 

@@ -33,7 +33,7 @@ def build_serial(F: ti.template(), b):
     for i in range(F.n_balls[b]):
         c = cell_index(F, b, cell_coords(F, b, F.x[b, i]))
         F.cell_of[b, i] = c
-        F.cell_count[b, c] += 1
+        F.cell_count[b, c] = F.cell_count[b, c] + 1  # one thread: no atomic
     running = 0
     for c in range(n_cells(F, b)):
         F.cell_start[b, c] = running
@@ -42,7 +42,7 @@ def build_serial(F: ti.template(), b):
     for i in range(F.n_balls[b]):
         c = F.cell_of[b, i]
         F.sorted_ids[b, F.cell_start[b, c] + F.cell_count[b, c]] = i
-        F.cell_count[b, c] += 1
+        F.cell_count[b, c] = F.cell_count[b, c] + 1
 
 
 # ---- the same counting sort as parallel kernels, for one large mill (b = 0)

@@ -19,18 +19,28 @@ from taimill.physics.neighbours import moved_too_far
 
 
 @ti.func
-def integrate(F: ti.template(), b, i, dr, dt):
+def frame_acceleration(F: ti.template(), b, dr):
+    """The step's acceleration of every ball but the contacts': the jar centre's
+    translation and gravity, m/s² (once per step, not per ball)."""
+    return translation_acceleration(dr, F.plate_radius[b]) - ti.Vector([0.0, 0.0, F.gravity[b]])
+
+
+@ti.func
+def integrate(F: ti.template(), b, i, dr, dt, a_frame):
+    """One step of ball i; a_frame = frame_acceleration of this step. (f/m + a_frame
+    rounds as f/m + a_translation - g ẑ would: the added zeros are exact.)"""
     x = F.x[b, i]
     u = to_non_rotating(F.v[b, i], x, dr.w)
-    a = F.f[b, i] / F.m[b, i] + translation_acceleration(dr, F.plate_radius[b]) - ti.Vector([0.0, 0.0, F.gravity[b]])
-    u += dt * a
+    u += dt * (F.f[b, i] / F.m[b, i] + a_frame)
     x = turn_basis(x + dt * u, dr)
     u = turn_basis(u, dr)
     F.x[b, i] = x
     F.v[b, i] = from_non_rotating(u, x, dr.w_next)
     F.s[b, i] = turn_basis(F.s[b, i] + dt * F.inv_i[b, i] * F.tau[b, i], dr)
-    F.drive_work[b, i] += F.drive_step[b, i]
-    F.dissipated[b, i] += F.diss_step[b, i]
+    # one writer per ball: a plain read-modify-write (`+=` on a field is an atomic,
+    # a locked instruction even in a serial loop)
+    F.drive_work[b, i] = F.drive_work[b, i] + F.drive_step[b, i]
+    F.dissipated[b, i] = F.dissipated[b, i] + F.diss_step[b, i]
     if moved_too_far(F, b, i):
         F.rebuild[b] = 1
     check_ball(F, b, i, x)

@@ -32,8 +32,10 @@ _initialised = False
 PARALLEL_ABOVE = 50_000
 # simulated seconds per fused launch (≥ 10⁴ steps). Each launch is followed by a drain
 # into the sinks, whose NumPy work has a fixed cost per call (≈ 4 ms with the summary
-# sink): at 0.05 s that was 17 % of a 12-ball run, at 0.25 s it is ≈ 7 % (cProfile of run()).
-LAUNCH_SECONDS = 0.25
+# sink): at 0.05 s that was 17 % of a 12-ball run, at 0.25 s ≈ 6 %, at 1 s ≈ 2 % (CPU
+# time of run() and of its drains, CY steel). A run killed mid-launch loses at most
+# this much; a launch with more events than its buffer holds ends early anyway.
+LAUNCH_SECONDS = 1.0
 # frames buffered per mill between drains (fewer for huge mills): enough for a launch
 # of LAUNCH_SECONDS at the mill's frame rate, within these bounds. Dense trajectories
 # (10⁵ frames/s) otherwise cut launches to 2000 steps, each paying a drain.

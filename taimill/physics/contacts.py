@@ -7,8 +7,9 @@ In fused mode (one thread per mill, balls in index order) the owner leaves the
 partner's force and torque in its slot and the partner's visit reads them
 (partner_share): the same numbers without computing the contact twice.
 
-The lower index owns a pair: only it books the event, the dissipation and the stored
-energy. Walls are owned by the ball. Open events live in per-ball slots flagged in a
+The lower own index owns a pair (state.owns; in parallel mode the rows are in grid
+order, reorder.py, and a ball's own index is F.user_of of its row): only it books the
+event, the dissipation and the stored energy. Walls are owned by the ball. Open events live in per-ball slots flagged in a
 bitmask: bits 0-2 the walls, 3.. the partners. An event opens at the first step with
 overlap u > 0 — its onset normal speed u̇_n and slip u̇_t are taken from that step's
 state, before its first force acts — and closes at the first step without overlap.
@@ -64,7 +65,7 @@ def slot_row(F: ti.template(), b, i, k, is_new):
             if row >= F.pool_capacity:
                 row = -1
                 F.status[b] = S.POOL_FULL
-                F.bad_ball[b] = i
+                F.bad_ball[b] = S.user_id(F, b, i)
         if row >= 0:
             F.slot_row[b, i, k] = row
     else:
@@ -138,11 +139,11 @@ def emit_event(F: ti.template(), b, i, k, t):
     body_j, kind, m_eff = -1.0 - k, 1.0, mi
     if k >= S.WALLS:
         j = F.slot_partner[b, i, k]
-        body_j, kind, m_eff = ti.cast(j, ti.f64), 0.0, mi * F.m[b, j] / (mi + F.m[b, j])
+        body_j, kind, m_eff = ti.cast(S.user_id(F, b, j), ti.f64), 0.0, mi * F.m[b, j] / (mi + F.m[b, j])
     row = ti.Vector.zero(ti.f64, S.NCOL)  # the schema's event columns, by name
     row[S.EV["t_start"]] = q[S.SLOT_T0]
     row[S.EV["duration"]] = t - q[S.SLOT_T0]
-    row[S.EV["body_i"]] = ti.cast(i, ti.f64)
+    row[S.EV["body_i"]] = ti.cast(S.user_id(F, b, i), ti.f64)
     row[S.EV["body_j"]] = body_j
     row[S.EV["kind"]] = kind
     row[S.EV["x"]] = q[S.SLOT_PX]
@@ -251,12 +252,12 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
             m_roll = mr
             tq += mr
             dtf += d_roll
-        if i < j:
+        if S.owns(F, b, i, j):
             diss_n, diss_t, stored = dn, dtf, el
             k = partner_slot(F, b, i, j, was_open | seen)
             if k < 0:
                 F.status[b] = S.SLOTS_FULL
-                F.bad_ball[b] = i
+                F.bad_ball[b] = S.user_id(F, b, i)
             else:
                 is_new = (was_open & (1 << k)) == 0
                 row = slot_row(F, b, i, k, is_new)
@@ -285,7 +286,7 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
         u = ri - phi
         if phi < -ri:  # centre beyond the wall: it tunnelled (dt too large for the stiffness)
             F.status[b] = S.ESCAPED
-            F.bad_ball[b] = i
+            F.bad_ball[b] = S.user_id(F, b, i)
         elif u > 0.0:
             nrm = -grad
             a = nrm * (ri - 0.5 * u)

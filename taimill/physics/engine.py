@@ -37,8 +37,8 @@ def drive(F: ti.template(), b, t):
 
 @ti.func
 def snapshot(F: ti.template(), b, t, dr):
-    """Store a frame and the energy ledger (ground-frame kinetic energy, m g z, stored
-    elastic energy, drive work, dissipation), J."""
+    """Store a frame (balls by own index) and the energy ledger (ground-frame kinetic
+    energy, m g z, stored elastic energy, drive work, dissipation), J."""
     k = F.n_frames[b]
     F.frame_t[b, k] = t
     om, _, phi_p = ramp_at(F.plate_ramp[b], t)
@@ -46,11 +46,14 @@ def snapshot(F: ti.template(), b, t, dr):
     F.frame_drive[b, k] = ti.Vector([phi_p, om, phi_j, w])  # DRIVE_FIELDS order
     ke, pe, el, dw, ds = 0.0, 0.0, 0.0, 0.0, 0.0
     mech = ti.Vector.zero(ti.f64, S.NMECH)
-    for i in range(F.n_balls[b]):
+    for u in range(F.n_balls[b]):  # in own-index order: the sums do not depend on the rows' order
+        i = u
+        if ti.static(F.reorder):
+            i = F.row_of[b, u]
         x, v, s, m = F.x[b, i], F.v[b, i], F.s[b, i], F.m[b, i]
-        F.frame_x[b, k, i] = x
-        F.frame_v[b, k, i] = v
-        F.frame_s[b, k, i] = s
+        F.frame_x[b, k, u] = x
+        F.frame_v[b, k, u] = v
+        F.frame_s[b, k, u] = s
         vg = v + wall_velocity_ground(x, dr, F.plate_radius[b])
         ke += 0.5 * m * vg.norm_sqr() + 0.5 * s.norm_sqr() / F.inv_i[b, i]
         pe += m * F.gravity[b] * x[2]
@@ -205,7 +208,9 @@ class Engine:
     balls) they are bounded by LARGE_FRAME_BYTES and LARGE_EVENT_BYTES instead of
     growing with N: the launcher drains after every launch, and a launch stops at a
     full frame buffer (one frame of 10⁶ balls is 72 MB). `pool`: rows of each mill's
-    open-contact pool (default state.pool_rows; tests force a small one).
+    open-contact pool (default state.pool_rows; tests force a small one). `reorder`:
+    keep the ball rows in grid order (reorder.py; parallel mode only, its default);
+    read balls through `ball_rows` and `neighbour_lists`, which give own indices.
     """
 
     BALL_PAD = 8  # f64 × 8 = 64 B
@@ -214,9 +219,11 @@ class Engine:
     LARGE_FRAME_BYTES = 16 << 20  # frames buffered in parallel mode (at least one)
     LARGE_EVENT_BYTES = 32 << 20  # events buffered in parallel mode, half of them the per-step margin
 
-    def __init__(self, batch, balls, *, mode="fused", use_grid=True, grid_cells=1, frame_capacity=256, pool=None):
+    def __init__(self, batch, balls, *, mode="fused", use_grid=True, grid_cells=1, frame_capacity=256, pool=None,
+                 reorder=None):
         if mode == "parallel" and batch != 1:
             raise ValueError("parallel mode runs one mill")
+        reorder = mode == "parallel" if reorder is None else reorder
         self.mode, self.use_grid = mode, use_grid or mode == "parallel"
         n = -(-balls // self.BALL_PAD) * self.BALL_PAD
         # worst case: every open contact of every ball closes in one step
@@ -229,7 +236,7 @@ class Engine:
             events = max(self.EVENT_ROWS, min(events, self.LARGE_EVENT_BYTES // (8 * S.NCOL)))
             self.margin = min(self.margin, events // 2)
             frames = int(max(1, min(frame_capacity, self.LARGE_FRAME_BYTES // (72 * n))))
-        self.F = S.Fields(batch, n, events, frames, grid_cells, pool, share_pairs=mode == "fused")
+        self.F = S.Fields(batch, n, events, frames, grid_cells, pool, share_pairs=mode == "fused", reorder=reorder)
 
     @property
     def B(self):
@@ -260,10 +267,21 @@ class Engine:
         else:
             rebuild_parallel(self.F)
 
+    def own_order(self, b: int) -> np.ndarray:
+        """Row of each ball of mill b, by own index (the identity unless F.reorder)."""
+        n = int(self.F.n_balls[b])
+        return self.F.row_of.to_numpy()[b, :n] if self.F.reorder else np.arange(n)
+
+    def ball_rows(self, b: int, name: str) -> np.ndarray:
+        """Per-ball field `name` (x, v, s, r, …) of mill b by own index."""
+        return getattr(self.F, name).to_numpy()[b][self.own_order(b)]
+
     def neighbour_lists(self, b: int) -> list[list[int]]:
+        """Each ball's neighbour list, by own index."""
         count = self.F.nbr_count.to_numpy()[b]
         nbr = self.F.nbr.to_numpy()[b]
-        return [list(nbr[i, : count[i]]) for i in range(int(self.F.n_balls[b]))]
+        user = self.F.user_of.to_numpy()[b] if self.F.reorder else np.arange(len(count))
+        return [[int(j) for j in user[nbr[i, : count[i]]]] for i in self.own_order(b)]
 
     def drain(self, b: int):
         """Frames and events of mill b buffered since the last drain, as NumPy arrays;

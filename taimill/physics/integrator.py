@@ -52,4 +52,4 @@ def check_ball(F: ti.template(), b, i, x):
     tunnelled through a wall is caught by the contact loop (contacts.py)."""
     if not (ti.abs(x[0]) < 1e3 and ti.abs(x[1]) < 1e3 and ti.abs(x[2]) < 1e3):
         F.status[b] = S.NONFINITE
-        F.bad_ball[b] = i
+        F.bad_ball[b] = S.user_id(F, b, i)

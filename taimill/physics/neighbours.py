@@ -7,7 +7,7 @@ balls where it is cheaper, from all pairs.
 
 import taichi as ti
 
-from taimill.physics import grid, state as S
+from taimill.physics import grid, reorder, state as S
 from taimill.physics.grid import cell_coords, cell_index
 
 
@@ -23,12 +23,13 @@ def list_candidate(F: ti.template(), b, i, j):
             F.nbr_count[b, i] = q + 1
         else:
             F.status[b] = S.LIST_FULL
-            F.bad_ball[b] = i
+            F.bad_ball[b] = S.user_id(F, b, i)
 
 
 @ti.func
 def build_list(F: ti.template(), b, i, use_grid: ti.template()):
-    """Neighbour list of ball i, in ascending j (deterministic summation order)."""
+    """Neighbour list of ball i, in ascending own index of j (deterministic summation
+    order, the same whatever order the rows are in)."""
     F.nbr_count[b, i] = 0
     F.x_ref[b, i] = F.x[b, i]
     if ti.static(use_grid):
@@ -51,12 +52,15 @@ def build_list(F: ti.template(), b, i, use_grid: ti.template()):
 
 @ti.func
 def sort_list(F: ti.template(), b, i):
-    """Insertion sort: cells are visited in grid order, not index order."""
+    """Insertion sort by own index (state.user_id): cells are visited in grid order."""
     n = F.nbr_count[b, i]
     for a in range(1, n):
         key = F.nbr[b, i, a]
+        rank = S.user_id(F, b, key)
         k = a - 1
-        while k >= 0 and F.nbr[b, i, k] > key:
+        while k >= 0:  # (Taichi's `and` evaluates both sides: no read at k = -1)
+            if S.user_id(F, b, F.nbr[b, i, k]) <= rank:
+                break
             F.nbr[b, i, k + 1] = F.nbr[b, i, k]
             k -= 1
         F.nbr[b, i, k + 1] = key
@@ -86,5 +90,8 @@ def build_lists_parallel(F: ti.template()):
 
 
 def rebuild_parallel(F):
+    """The grid, the ball rows put in its order (reorder.py, if F.reorder), the lists."""
     grid.build_parallel(F)
+    if F.reorder:
+        reorder.permute(F)
     build_lists_parallel(F)

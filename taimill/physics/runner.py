@@ -43,19 +43,19 @@ FRAME_CAPACITY = (256, 32768)
 _engines: dict = {}
 
 
-def _engine(batch, balls, mode, use_grid, cells, frames=FRAME_CAPACITY[0], pool=None) -> Engine:
+def _engine(batch, balls, mode, use_grid, cells, frames=FRAME_CAPACITY[0], pool=None, reorder=None) -> Engine:
     """Engines are reused within a process: new fields mean new kernel instances, and
     compiling those costs ≈ 1.3 s each. Ball counts with the same padded row length
     (Engine.BALL_PAD) share one engine: its fields are identical; so do frame
     capacities up to one of an engine already made."""
     balls = -(-balls // Engine.BALL_PAD) * Engine.BALL_PAD
     frames = frames if mode == "fused" else 8
-    for (b, n, m, g, c, p, f), engine in _engines.items():
-        if (b, n, m, g, c, p) == (batch, balls, mode, use_grid, cells, pool) and f >= frames:
+    for (b, n, m, g, c, p, r, f), engine in _engines.items():
+        if (b, n, m, g, c, p, r) == (batch, balls, mode, use_grid, cells, pool, reorder) and f >= frames:
             return engine
-    key = (batch, balls, mode, use_grid, cells, pool, frames)
+    key = (batch, balls, mode, use_grid, cells, pool, reorder, frames)
     _engines[key] = Engine(batch, balls, mode=mode, use_grid=use_grid, grid_cells=cells, frame_capacity=frames,
-                           pool=pool)
+                           pool=pool, reorder=reorder)
     return _engines[key]
 
 
@@ -191,14 +191,15 @@ class Runner:
     """Advances a batch of mills to their step targets, streaming to one sink each."""
 
     def __init__(self, specs: list[MillSpec], *, mode: str | None = None, use_grid: bool = True,
-                 pool: int | None = None):
-        """`pool`: rows of each mill's open-contact pool (tests; default state.pool_rows)."""
+                 pool: int | None = None, reorder: bool | None = None):
+        """`pool`: rows of each mill's open-contact pool (tests; default state.pool_rows);
+        `reorder`: ball rows in grid order (tests; default: in parallel mode, Engine)."""
         init_taichi()
         self.specs = specs
         n = max(s.n for s in specs)
         mode = mode or ("parallel" if len(specs) == 1 and n > PARALLEL_ABOVE else "fused")
         cells = 1 << max(grid_cells_for(s) for s in specs).bit_length()
-        self.engine = _engine(len(specs), n, mode, use_grid, cells, frame_capacity(specs), pool)
+        self.engine = _engine(len(specs), n, mode, use_grid, cells, frame_capacity(specs), pool, reorder)
         every = min(s.frame_every for s in specs)
         room = (self.engine.F.frame_capacity - 2) * every
         if mode == "fused":
@@ -249,6 +250,5 @@ class Runner:
                 raise SimulationUnstable(bad[0])
 
     def final_state(self, b: int):
-        F = self.engine.F
         n = self.specs[b].n
-        return {k: getattr(F, k).to_numpy()[b, :n] for k in ("x", "v", "s")}
+        return {k: self.engine.ball_rows(b, k)[:n] for k in ("x", "v", "s")}

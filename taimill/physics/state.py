@@ -65,12 +65,18 @@ CONTACT_TYPES = 2  # 0 ball-ball, 1 ball-wall
 @ti.data_oriented
 class Fields:
     def __init__(self, batch: int, balls: int, event_capacity: int, frame_capacity: int, grid_cells: int,
-                 pool: int | None = None, share_pairs: bool = False):
+                 pool: int | None = None, share_pairs: bool = False, reorder: bool = False):
         B, N = batch, balls
+        if reorder and (B != 1 or share_pairs):
+            raise ValueError("balls are stored in grid order only in parallel mode (one mill)")
         P = pool_rows(N) if pool is None else pool
         # the balls' forces are computed one after another in index order (fused mode):
         # a pair's owner leaves the partner's force and torque (contacts.partner_share)
         self.share_pairs = share_pairs
+        # parallel mode: ball rows are kept in the order of the grid cells, refreshed at
+        # every neighbour-list build (reorder.py); user_of maps a row to the ball's own
+        # index, which every output and the contact ownership use
+        self.reorder = reorder
         self.B, self.N, self.event_capacity, self.frame_capacity = B, N, event_capacity, frame_capacity
         self.pool_capacity = P
         self.grid_cells = grid_cells
@@ -131,9 +137,12 @@ class Fields:
         self.mech = ti.field(f64, (B, N, NMECH))  #: J, dissipation by mechanism, booked in the force pass
         self.elastic = ti.field(f64, (B, N))  #: J, stored now in contacts this ball owns
         self.side_ref = ti.field(ti.types.vector(3, f64), (B, N))  #: m, (x₀, y₀, lower bound of φ there), walls.side_wall_near
+        ids = (B, N) if reorder else (1, 1)
+        self.user_of = ti.field(i32, ids)  #: the ball's own index (its index in the MillSpec) of row i
+        self.row_of = ti.field(i32, ids)  #: row of the ball with own index u (inverse of user_of)
         self.step = ti.field(i64, B)
         self.status = ti.field(i32, B)
-        self.bad_ball = ti.field(i32, B)
+        self.bad_ball = ti.field(i32, B)  #: own index (user_id) of the ball that raised the status
 
         # ---- open contacts [B, N, SLOTS], their event data in a pool of rows [B, P]
         self.slot_mask = ti.field(i32, (B, N))  #: bit k set: slot k holds an open event
@@ -156,9 +165,9 @@ class Fields:
 
         # ---- Verlet neighbour lists [B, N, NEIGHBOURS]
         self.rebuild = ti.field(i32, B)  #: 1: lists are stale
-        self.x_ref = ti.field(vec3, (B, N))  #: positions at the last build, m
+        self.x_ref = ti.field(vec3, (B, N))  #: positions at the last build, m (scratch of reorder.py before it)
         self.nbr_count = ti.field(i32, (B, N))
-        self.nbr = ti.field(i32, (B, N, NEIGHBOURS))
+        self.nbr = ti.field(i32, (B, N, NEIGHBOURS))  #: neighbour rows (scratch of reorder.py before a build)
 
         # ---- output buffers, drained by the launcher after every launch
         self.events = ti.Vector.field(NCOL, f64, (B, event_capacity))
@@ -170,3 +179,22 @@ class Fields:
         self.frame_ledger = ti.Vector.field(len(LEDGER_FIELDS), f64, (B, frame_capacity))
         self.frame_drive = ti.Vector.field(len(DRIVE_FIELDS), f64, (B, frame_capacity))  #: φ_p, Ω, φ_j, w
         self.n_frames = ti.field(i32, B)
+
+
+@ti.func
+def user_id(F: ti.template(), b, i):
+    """The ball's own index (its index in the MillSpec, in every output) of row i."""
+    u = i
+    if ti.static(F.reorder):
+        u = F.user_of[b, i]
+    return u
+
+
+@ti.func
+def owns(F: ti.template(), b, i, j):
+    """Ball i owns its contact with ball j (books its event and energy): the lower own
+    index, so a contact keeps its owner when the rows are reordered."""
+    mine = i < j
+    if ti.static(F.reorder):
+        mine = F.user_of[b, i] < F.user_of[b, j]
+    return mine

@@ -173,9 +173,10 @@ class LiveMill:
         n = self.n_balls
         with self._locked():
             t = self.time
-            out = {"position": self.F.x.to_numpy()[0, :n]}
+            rows = self.runner.engine.ball_rows  # by the ball's own index (parallel mode reorders rows)
+            out = {"position": rows(0, "x")[:n]}
             if velocities:
-                out |= {"velocity": self.F.v.to_numpy()[0, :n], "spin": self.F.s.to_numpy()[0, :n]}
+                out |= {"velocity": rows(0, "v")[:n], "spin": rows(0, "s")[:n]}
         d = self.drive(t)
         return out | {"time": t, "psi": d["plate_angle"] - d["jar_angle"], "plate": d["plate"], "jar": d["jar"]}
 

@@ -1,0 +1,131 @@
+"""Parallel mode: ball rows in the order of the grid cells, so that balls near in space
+are near in memory. The contact loop reads every neighbour's state; with rows in the
+order the balls were placed (random placement, or a bed once it has mixed), nearly
+every such read misses the cache: a dense bed of 10⁵ balls in random row order ran
+3-4× slower than the same bed in grid order (scripts/bench.py's case, one thread).
+
+At every neighbour-list build, after the counting sort (grid.py) and before the lists,
+each per-ball row moves to its place in the cell order (`permute`): row q takes the
+ball at old row sorted_ids[q]. F.user_of follows the balls, so outputs, events, the
+faulting ball and the contact ownership (state.owns: the lower own index) keep using
+the ball's own index; the lists are sorted by own index (neighbours.sort_list), so
+forces are summed in the same order as without the reorder, and results are
+bit-identical to it (tests/test_reorder.py).
+
+What moves: state (x, v, s), ball properties (r, m, inv_i), the side-wall bound
+(side_ref), the energy ledger (drive_work, dissipated, elastic, mech) and the open
+contacts (slot_mask, slot_row, slot_partner, whose partner rows are renumbered). The
+pool rows stay where they are (a slot keeps its row index). Per-step scratch (f, tau,
+drive_step, diss_step) is rewritten by the next force pass before it is read, x_ref,
+nbr and nbr_count by the list build that follows, and slot_closed is empty between
+steps (release_rows): none of them moves. x_ref and nbr are the scratch of the move.
+"""
+
+import taichi as ti
+
+from taimill.physics import state as S
+
+_INTS = 2 + 2 * S.SLOTS  # a row's slot_mask, user_of, slot_row and slot_partner in nbr's row
+assert _INTS <= S.NEIGHBOURS
+
+
+@ti.kernel
+def _inverse(F: ti.template()):
+    """cell_of (free after the counting sort) ← new row of each old row."""
+    for q in range(F.n_balls[0]):
+        F.cell_of[0, F.sorted_ids[0, q]] = q
+
+
+@ti.kernel
+def _gather_vec(F: ti.template(), a: ti.template()):
+    for q in range(F.n_balls[0]):
+        F.x_ref[0, q] = a[0, F.sorted_ids[0, q]]
+
+
+@ti.kernel
+def _put_vec(F: ti.template(), a: ti.template()):
+    for q in range(F.n_balls[0]):
+        a[0, q] = F.x_ref[0, q]
+
+
+@ti.kernel
+def _gather_scalars(F: ti.template(), a: ti.template(), b: ti.template(), c: ti.template()):
+    for q in range(F.n_balls[0]):
+        p = F.sorted_ids[0, q]
+        F.x_ref[0, q] = ti.Vector([a[0, p], b[0, p], c[0, p]])
+
+
+@ti.kernel
+def _put_scalars(F: ti.template(), a: ti.template(), b: ti.template(), c: ti.template()):
+    for q in range(F.n_balls[0]):
+        row = F.x_ref[0, q]
+        a[0, q] = row[0]
+        b[0, q] = row[1]
+        c[0, q] = row[2]
+
+
+@ti.kernel
+def _gather_mech(F: ti.template(), c0: ti.template()):
+    for q in range(F.n_balls[0]):
+        p = F.sorted_ids[0, q]
+        row = ti.Vector.zero(ti.f64, 3)
+        for k in ti.static(range(3)):
+            if ti.static(c0 + k < S.NMECH):
+                row[k] = F.mech[0, p, c0 + k]
+        F.x_ref[0, q] = row
+
+
+@ti.kernel
+def _put_mech(F: ti.template(), c0: ti.template()):
+    for q in range(F.n_balls[0]):
+        row = F.x_ref[0, q]
+        for k in ti.static(range(3)):
+            if ti.static(c0 + k < S.NMECH):
+                F.mech[0, q, c0 + k] = row[k]
+
+
+@ti.kernel
+def _gather_ints(F: ti.template()):
+    for q in range(F.n_balls[0]):
+        p = F.sorted_ids[0, q]
+        mask = F.slot_mask[0, p]
+        F.nbr[0, q, 0] = mask
+        F.nbr[0, q, 1] = F.user_of[0, p]
+        for k in ti.static(range(S.SLOTS)):
+            F.nbr[0, q, 2 + k] = F.slot_row[0, p, k]
+            partner = -1
+            if ti.static(k >= S.WALLS):
+                if mask & (1 << k):
+                    partner = F.cell_of[0, F.slot_partner[0, p, k]]
+            F.nbr[0, q, 2 + S.SLOTS + k] = partner
+
+
+@ti.kernel
+def _put_ints(F: ti.template()):
+    """Also the grid's order: the rows are now in it (sorted_ids the identity)."""
+    for q in range(F.n_balls[0]):
+        F.slot_mask[0, q] = F.nbr[0, q, 0]
+        u = F.nbr[0, q, 1]
+        F.user_of[0, q] = u
+        F.row_of[0, u] = q
+        for k in ti.static(range(S.SLOTS)):
+            F.slot_row[0, q, k] = F.nbr[0, q, 2 + k]
+            F.slot_partner[0, q, k] = F.nbr[0, q, 2 + S.SLOTS + k]
+        F.sorted_ids[0, q] = q
+
+
+def permute(F):
+    """Move every ball row of mill 0 to its place in the grid order (F.sorted_ids of
+    the counting sort just done); the grid stays valid (cell_start, cell_count)."""
+    _inverse(F)
+    for a in (F.x, F.v, F.s, F.side_ref):
+        _gather_vec(F, a)
+        _put_vec(F, a)
+    for group in ((F.r, F.m, F.inv_i), (F.drive_work, F.dissipated, F.elastic)):
+        _gather_scalars(F, *group)
+        _put_scalars(F, *group)
+    for c0 in range(0, S.NMECH, 3):
+        _gather_mech(F, c0)
+        _put_mech(F, c0)
+    _gather_ints(F)  # last: it needs the old sorted_ids, _put_ints makes them the identity
+    _put_ints(F)

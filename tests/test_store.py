@@ -271,13 +271,15 @@ def test_a_version_1_store_still_reads(tmp_path):
     assert "dissipated" in run.energy and not set(MECHANISM_COLUMNS) & set(run.energy)
 
 
-def test_chunks_are_the_bytes_zarr_writes(tmp_path):
+@pytest.mark.parametrize("rows, chunk", [(13, 8), (70000, 65536)])  # large chunks: Blosc could use threads
+def test_chunks_are_the_bytes_zarr_writes(tmp_path, rows, chunk):
     # the sink encodes and stores whole chunks itself (store.run._ChunkWriter): a chunk
     # must be byte for byte what zarr stores for the same rows, full or partial
     rng = np.random.default_rng(11)
-    sink = ZarrSink(tmp_path / "run.zarr", frame_chunk=8, event_chunk=16)
+    sink = ZarrSink(tmp_path / "run.zarr", frame_chunk=chunk, event_chunk=2 * chunk)
     sink.start({}, N_BALLS, np.full(N_BALLS, 0.005))
-    frames, events = frame_block(rng, 13), event_block(rng, 21)
+    frames = {k: np.cumsum(v, axis=0) for k, v in frame_block(rng, rows).items()}  # smooth, as a run's: compressible
+    events = event_block(rng, rows + rows // 2)
     sink.frames(frames)
     sink.events(events)
     sink.finish({}, "complete")
@@ -290,9 +292,10 @@ def test_chunks_are_the_bytes_zarr_writes(tmp_path):
                                       fill_value=ours.fill_value, compressors=ours.compressors,
                                       config={"write_empty_chunks": True})
             theirs[:] = v
-            for chunk in (tmp_path / "ref.zarr" / table / k / "c").rglob("*"):
-                if chunk.is_file():
-                    mine = tmp_path / "run.zarr" / chunk.relative_to(tmp_path / "ref.zarr")
-                    assert mine.read_bytes() == chunk.read_bytes(), (table, k, chunk.name)
+            for ref_file in (tmp_path / "ref.zarr" / table / k / "c").rglob("*"):
+                if ref_file.is_file():
+                    mine = tmp_path / "run.zarr" / ref_file.relative_to(tmp_path / "ref.zarr")
+                    assert mine.read_bytes() == ref_file.read_bytes(), (table, k, ref_file.name)
                     compared += 1
-    assert compared == 2 * len(frames) + 2 * len(events)  # 13 frames in chunks of 8, 21 events of 16
+    n_events = len(events["t_start"])
+    assert compared == len(frames) * -(-rows // chunk) + len(events) * -(-n_events // (2 * chunk))

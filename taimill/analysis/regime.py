@@ -87,12 +87,28 @@ class RegimeFeatures:
     def _piece(self, t: float) -> np.ndarray:
         return self.pieces.setdefault(int((t - self.t0) // PIECE), np.zeros(7))
 
+    def _sampled(self, time: np.ndarray):
+        """(index, time) of the frames sampled at FEATURE_RATE: the first frame at or
+        after next_t, then the first at or after its time + 1 / FEATURE_RATE, ... In
+        time order the next one is found by bisection: a dense trajectory (10⁵ frames/s)
+        is not walked frame by frame in Python."""
+        time = np.asarray(time)
+        ordered = len(time) < 2 or bool(np.all(time[1:] >= time[:-1]))
+        f = 0
+        while f < len(time):
+            if ordered:
+                f += int(np.searchsorted(time[f:], self.next_t - 1e-12, side="left"))
+                if f == len(time):
+                    return
+            t = time[f]
+            if not t < self.next_t - 1e-12:
+                self.next_t = t + 1.0 / FEATURE_RATE
+                yield f, t
+            f += 1
+
     def frames(self, block: dict) -> None:
         n = len(self.radii)
-        for f, t in enumerate(block["time"]):
-            if t < self.next_t - 1e-12:
-                continue
-            self.next_t = t + 1.0 / FEATURE_RATE
+        for f, t in self._sampled(block["time"]):
             # the frame's own drive (a TUI run changes it live), else the config's ramps
             w = float(block["jar_spin"][f]) if "jar_spin" in block else self.g.jar.at(float(t))[0]
             om = float(block["plate_speed"][f]) if "plate_speed" in block else self.g.plate.at(float(t))[0]

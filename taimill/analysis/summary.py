@@ -37,12 +37,17 @@ class EnergyLedger:
         self.scale = 0.0
 
     def add(self, block: dict) -> None:
-        rows = np.column_stack([block[k] for k in ENERGY_COLUMNS if k in block])
+        cols = [np.asarray(block[k]) for k in ENERGY_COLUMNS if k in block]
+        if not len(cols[0]):
+            return
+        row = lambda i: np.array([c[i] for c in cols])  # noqa: E731  one ledger row, every column
         if self.first is None:
-            self.first = rows[0]
-        if self.window is None and (rows[:, 0] >= self.t0).any():
-            self.window = rows[np.argmax(rows[:, 0] >= self.t0)]
-        self.last = rows[-1]
+            self.first = row(0)
+        if self.window is None and (cols[0] >= self.t0).any():
+            self.window = row(int(np.argmax(cols[0] >= self.t0)))
+        self.last = row(-1)
+        # the imbalance and scale need five columns: not a copy of all of them per row
+        rows = np.column_stack(cols[:6])
         self.worst = max(self.worst, float(np.abs(self.imbalance(rows)).max()))
         self.scale = max(self.scale, float(np.abs(rows[:, 4] - self.first[4]).max()))
 

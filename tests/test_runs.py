@@ -189,3 +189,35 @@ def test_init_taichi_removes_an_old_lock_in_the_cache_folder_it_uses(tmp_path):
     assert res.returncode == 0, res.stderr
     assert (tmp_path / "ticache.tcb").exists()  # Taichi could take the lock and write its cache
     assert not lock.exists()
+
+
+def test_drained_frames_are_reused_only_when_nothing_else_holds_them(tmp_path):
+    from taimill.model.spec import from_preset
+    from taimill.physics.runner import Runner
+
+    p = dataclasses.replace(load_preset("presets/p4-cy-steel.toml"), trajectory_rate=1e4)
+    engine = Runner([from_preset(p, 0.2)]).engine
+    engine.advance(20000)
+    first, _, _ = engine.drain(0)
+    kept, copy = first["spin"][:, 0], first["spin"].copy()  # a sink keeping a view of a block
+    del first
+    engine.advance(20000)
+    second, _, ledger = engine.drain(0)
+    assert second["spin"].base is not kept.base  # new arrays: the kept block is intact
+    np.testing.assert_array_equal(kept, copy[:, 0])
+    base = id(second["spin"].base)
+    del second, ledger, kept
+    engine.advance(20000)
+    third, _, _ = engine.drain(0)
+    assert id(third["spin"].base) == base  # nothing held them: reused
+    # a stream whose arrays are reused (the zarr sink copies what it keeps) stores what a
+    # memory sink, which keeps every block, receives
+    q = dataclasses.replace(p, duration=0.6)
+    run(q, ZarrSink(tmp_path / "alone.zarr"))
+    mem = MemorySink()
+    run(q, mem)
+    store = open_run(tmp_path / "alone.zarr")
+    for k, v in mem.frame_table.items():
+        np.testing.assert_array_equal(store.frames[k], v)
+    for k, v in mem.energy_table.items():
+        np.testing.assert_array_equal(store.energy[k], v)

@@ -11,10 +11,12 @@ Layout of one run group (docs/outputs.md):
                  whole chunk of each table
 
 Crash safety (zarr 3.1, tests/test_store.py, tests/test_faults.py): every key is written
-atomically, but an append resizes an array before its data lands. So each table group
-carries an attribute `n_valid`, written only after every array of the table holds its
-rows; readers slice to it and a restarted writer trims back to it (`trim_to_valid`).
-Rows reach the arrays in whole chunks. Between chunks, the sink commits whenever a
+atomically, but an array is resized before its data lands (while the writer runs, to
+up to twice its committed rows: `_TableWriter`). So each table group carries an
+attribute `n_valid`, written only after every array of the table holds its rows;
+readers slice to it and a restarted writer trims back to it (`trim_to_valid`); a
+writer that finishes leaves every array `n_valid` rows long. Rows reach the arrays in
+whole chunks, encoded and stored by the sink (`_ChunkWriter`). Between chunks, the sink commits whenever a
 ledger block brings the simulated time `commit_every` (0.2 s) past the last commit,
 i.e. after every 0.25 s launch of a run: the rows not yet in the arrays since the last
 commit, of every table, go to ONE journal file (`TABLE/start`, `TABLE/COLUMN` in a

@@ -695,9 +695,10 @@ def trajectory_section(duration: float) -> dict:
     ratio = {}
     if len(best) == 2:
         ratio = {k: best[1e5][k] / best[100.0][k] for k in ("wall", "cpu")}
+        verdict = {k: "met" if ratio[k] <= DENSE_TARGET else "MISSED" for k in ratio}
         print(f"  10⁵ / 100 frames/s (best of each): cpu {ratio['cpu']:.2f}x, wall {ratio['wall']:.2f}x; target ≤"
-              f" {DENSE_TARGET:g}x: cpu {'met' if ratio['cpu'] <= DENSE_TARGET else 'MISSED'}"
-              " (wall counts the disk and the machine's other load)")
+              f" {DENSE_TARGET:g}x: cpu {verdict['cpu']} (the acceptance figure: CPU seconds of every thread),"
+              f" wall {verdict['wall']} (wall counts the disk and the machine's other load)")
     return dict(rows=rows, ratio=ratio)
 
 

@@ -511,23 +511,27 @@ class ZarrSink:
 
 
 def _local_path(store, key: str) -> Path | None:
-    """The file of `key` if `store` is a local directory store (its parent directory
-    made), else None."""
+    """The file of `key` if `store` is a local directory store, else None."""
     root = getattr(store, "root", None)
     if not isinstance(store, LocalStore) or root is None:
         return None
-    path = Path(root) / key
-    path.parent.mkdir(parents=True, exist_ok=True)
-    return path
+    return Path(root) / key
 
 
 @contextmanager
 def _atomic_file(path: Path):
     """A new file that replaces `path` once written whole (as zarr's LocalStore does:
-    a reader or a killed writer sees the old file or the new one)."""
+    a reader or a killed writer sees the old file or the new one). Its directory is
+    made if missing (a new chunk row of a 3-D array): asking first would cost a
+    system call per file."""
     tmp = path.with_name(f"{path.name}.{uuid.uuid4().hex}.partial")
     try:
-        with open(tmp, "wb") as f:
+        try:
+            f = open(tmp, "wb")
+        except FileNotFoundError:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            f = open(tmp, "wb")
+        with f:
             yield f
         os.replace(tmp, path)
     except BaseException:

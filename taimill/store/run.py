@@ -16,11 +16,12 @@ up to twice its committed rows: `_TableWriter`). So each table group carries an
 attribute `n_valid`, written only after every array of the table holds its rows;
 readers slice to it and a restarted writer trims back to it (`trim_to_valid`); a
 writer that finishes leaves every array `n_valid` rows long. Rows reach the arrays in
-whole chunks, encoded and stored by the sink (`_ChunkWriter`). Between chunks, the sink commits whenever a
-ledger block brings the simulated time `commit_every` (0.2 s) past the last commit,
-i.e. after every 0.25 s launch of a run: the rows not yet in the arrays since the last
-commit, of every table, go to ONE journal file (`TABLE/start`, `TABLE/COLUMN` in a
-NumPy .npz, written atomically); readers append the journal's rows after `n_valid`.
+whole chunks, encoded and stored by the sink (`_ChunkWriter`). Between chunks, the
+sink commits whenever a ledger block brings the simulated time `commit_every` (0.2 s)
+past the last commit, i.e. after every 0.25 s launch of a run: the rows not yet in the
+arrays since the last commit, of every table, go to ONE journal file (`TABLE/start`,
+`TABLE/COLUMN` in a NumPy .npz, written atomically); readers append the journal's rows
+after `n_valid`.
 Appending a sub-chunk block to each of the 47 arrays instead would cost a resize and a
 chunk rewrite per array, ≈ 0.2 s per commit, as long as the launch itself (zarr's cost
 per call); the journal costs ≈ 4 ms. Segments whose rows all reached the arrays are
@@ -77,7 +78,10 @@ JOURNAL_DESCRIPTION = ("rows committed since the last whole chunk of each table,
 # FRAME_CHUNK_SECONDS of simulated frames at the run's trajectory_rate, within these
 # bounds. zarr costs ≈ 2 ms per chunk of every array whatever its size (scripts/bench.py
 # --only dense): at 10⁵ frames/s, 1024-row chunks of the 30-odd frame and ledger arrays
-# cost 70 µs per frame, ten times the simulation; 65536-row chunks ≈ 2 µs.
+# cost 70 µs per frame, ten times the simulation; 65536-row chunks ≈ 2 µs. The sink now
+# stores chunks itself (`_ChunkWriter`), but readers still pay zarr's cost per chunk and
+# each chunk is a file: 8192- or 16384-row chunks at 10⁵ frames/s cost the writer more
+# in file creation than they save in journal rows (replayed stream, 2 cores).
 FRAME_CHUNK_SECONDS = 0.5
 FRAME_CHUNK_ROWS = (1024, 65536)
 # Every array: LZ4 after byte shuffling (Blosc), for floating-point columns faster and
@@ -283,7 +287,7 @@ class _TableWriter:
 class _ChunkWriter:
     """Stores whole chunks of the table arrays. Arrays whose codecs are this module's
     (little-endian bytes, then `COMPRESSOR`) get their chunks encoded here, in one call
-    to Blosc each, and stored under their keys concurrently: the bytes zarr itself
+    to Blosc each, and stored under their keys (`put_all`): the bytes zarr itself
     stores for that chunk (tests/test_store.py), without zarr's per-chunk cost (≈ 2.5 ms
     of Python per chunk in zarr 3.1, and fresh copies of every chunk). Other arrays
     go through zarr."""

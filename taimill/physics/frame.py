@@ -53,16 +53,28 @@ def ramp_turn(p, t, dt):
 
 
 @ti.func
-def drive_turning(plate, jar, t, dt, cturn, sturn):
-    """The drive over the step [t, t + dt], trigonometry done once per step; cturn,
-    sturn are cos and sin of the jar's turn ramp_turn(jar, t, dt), which the caller may
-    keep from an earlier step (at constant speed the turn repeats to the bit)."""
-    om, om_dot, phi_p = ramp_at(plate, t)
-    w, _, phi_j = ramp_at(jar, t)
+def steady(p, t):
+    """A ramp p has reached its end speed by t: its angle grows by end·dt a step."""
+    return t - p[0] >= p[3]
+
+
+@ti.func
+def psi_at(plate, jar, t):
+    """ψ = φ_plate - φ_jar at t, rad."""
+    _, _, phi_p = ramp_at(plate, t)
+    _, _, phi_j = ramp_at(jar, t)
+    return phi_p - phi_j
+
+
+@ti.func
+def drive_turning(plate, jar, t, dt, cturn, sturn, cpsi, spsi):
+    """The drive over the step [t, t + dt] given the step's trigonometry: cturn, sturn
+    of the jar's turn ramp_turn(jar, t, dt) and cpsi, spsi of ψ(t) (the caller keeps
+    both from earlier steps where it can, engine.drive)."""
+    om, om_dot, _ = ramp_at(plate, t)
+    w, _, _ = ramp_at(jar, t)
     w_next, _, _ = ramp_at(jar, t + dt)
-    psi = phi_p - phi_j
-    return Drive(om=om, om_dot=om_dot, w=w, w_next=w_next, cpsi=ti.cos(psi), spsi=ti.sin(psi),
-                 cturn=cturn, sturn=sturn)
+    return Drive(om=om, om_dot=om_dot, w=w, w_next=w_next, cpsi=cpsi, spsi=spsi, cturn=cturn, sturn=sturn)
 
 
 @ti.func

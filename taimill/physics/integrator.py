@@ -27,11 +27,12 @@ def frame_acceleration(F: ti.template(), b, dr):
 
 @ti.func
 def integrate(F: ti.template(), b, i, dr, dt, a_frame):
-    """One step of ball i; a_frame = frame_acceleration of this step. (f/m + a_frame
-    rounds as f/m + a_translation - g ẑ would: the added zeros are exact.)"""
+    """One step of ball i; a_frame = frame_acceleration of this step. The contact
+    acceleration is f times the stored 1/m (a multiplication instead of a division: 5 %
+    of a 12-ball step; it differs from f/m in the last bit)."""
     x = F.x[b, i]
     u = to_non_rotating(F.v[b, i], x, dr.w)
-    u += dt * (F.f[b, i] / F.m[b, i] + a_frame)
+    u += dt * (F.f[b, i] * F.inv_m[b, i] + a_frame)
     x = turn_basis(x + dt * u, dr)
     u = turn_basis(u, dr)
     F.x[b, i] = x

@@ -86,24 +86,26 @@ def elastic_energy(u, f_el, n):
 
 @ti.func
 def friction_coefficient(v, mu_s, mu_d, v_s, v_d):
-    """Regularised Coulomb μ(v), thesis eq 3.7."""
+    """Regularised Coulomb μ(v), thesis eq 3.7. (The reciprocals of the constants are
+    off the contact's chain of dependent operations; a division by them is on it.)"""
     mu = mu_d
     if v < v_s:
-        mu = mu_s * smoothstep(v / v_s)
+        mu = mu_s * smoothstep(v * (1.0 / v_s))
     else:
-        mu = mu_s - (mu_s - mu_d) * smoothstep((v - v_s) / (v_d - v_s))
+        mu = mu_s - (mu_s - mu_d) * smoothstep((v - v_s) * (1.0 / (v_d - v_s)))
     return mu
 
 
 @ti.func
 def friction_force(slip, f_n, mu_s, mu_d, v_s, v_d, inv_mass_t, dt):
     """Friction force opposing `slip`; its impulse in one step never exceeds the one
-    that stops the slip (inv_mass_t = Σ 1/m + a²/I of both bodies)."""
+    that stops the slip (inv_mass_t = Σ 1/m + a²/I of both bodies). Computed as
+    -min(μ F_n / v, 1 / (dt inv_mass_t)) slip: one division by v, in parallel with μ(v)."""
     vs = slip.norm()
     f = ti.Vector([0.0, 0.0, 0.0])
     if vs > 0.0:
-        mag = ti.min(friction_coefficient(vs, mu_s, mu_d, v_s, v_d) * f_n, vs / (dt * inv_mass_t))
-        f = -mag / vs * slip
+        per_v = ti.min(friction_coefficient(vs, mu_s, mu_d, v_s, v_d) * f_n * (1.0 / vs), 1.0 / (dt * inv_mass_t))
+        f = -per_v * slip
     return f
 
 

@@ -26,6 +26,8 @@ def write_mill(F, b: int, spec: MillSpec):
     F.jar_ramp[b] = spec.jar.as_tuple()
     F.frame_every[b] = spec.frame_every
     F.turn_trig[b] = (float("inf"), 1.0, 0.0)  # no turn is inf: computed at the first step (NaN would not do: Taichi compares floats ordered)
+    F.psi_rec[b] = (float("inf"), 1.0, 0.0)  # no step's: computed at the first step
+    F.psi_rot[b] = (float("inf"), 1.0, 0.0)
     F.target[b] = spec.steps
     F.stress_un[b] = spec.stress_min_un
     F.impact_age[b] = spec.impact_age
@@ -88,6 +90,7 @@ def _load_mill(F: ti.template(), b: ti.i32, n: ti.i32, n_pieces: ti.i32, pieces:
             F.s[b, i] = ti.Vector([s[i, 0], s[i, 1], s[i, 2]])
             F.r[b, i] = r[i]
             F.m[b, i] = m[i]
+            F.inv_m[b, i] = 1.0 / m[i]  # reorder._inverse_masses computes it the same way
             F.inv_i[b, i] = inv_i[i]
         else:
             F.x[b, i] = zero
@@ -95,6 +98,7 @@ def _load_mill(F: ti.template(), b: ti.i32, n: ti.i32, n_pieces: ti.i32, pieces:
             F.s[b, i] = zero
             F.r[b, i] = 1.0
             F.m[b, i] = 1.0
+            F.inv_m[b, i] = 1.0
             F.inv_i[b, i] = 1.0
         F.f[b, i] = zero
         F.tau[b, i] = zero

@@ -12,7 +12,7 @@ the ball's own index; the lists are sorted by own index (neighbours.sort_list), 
 forces are summed in the same order as without the reorder, and results are
 bit-identical to it (tests/test_reorder.py).
 
-What moves: state (x, v, s), ball properties (r, m, inv_i), the side-wall bound
+What moves: state (x, v, s), ball properties (r, m, inv_i; inv_m is recomputed from m, the same division as at the start), the side-wall bound
 (side_ref), the energy ledger (drive_work, dissipated, elastic, mech) and the open
 contacts (slot_mask, slot_row, slot_partner, whose partner rows are renumbered). The
 pool rows stay where they are (a slot keeps its row index). Per-step scratch (f, tau,
@@ -62,6 +62,12 @@ def _put_scalars(F: ti.template(), a: ti.template(), b: ti.template(), c: ti.tem
         a[0, q] = row[0]
         b[0, q] = row[1]
         c[0, q] = row[2]
+
+
+@ti.kernel
+def _inverse_masses(F: ti.template()):
+    for q in range(F.n_balls[0]):
+        F.inv_m[0, q] = 1.0 / F.m[0, q]  # as mill.load_mill computed it: the same bits
 
 
 @ti.kernel
@@ -127,5 +133,6 @@ def permute(F):
     for c0 in range(0, S.NMECH, 3):
         _gather_mech(F, c0)
         _put_mech(F, c0)
+    _inverse_masses(F)
     _gather_ints(F)  # last: it needs the old sorted_ids, _put_ints makes them the identity
     _put_ints(F)

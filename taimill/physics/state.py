@@ -93,6 +93,8 @@ class Fields:
         self.jar_ramp = ti.Vector.field(5, f64, B)  #: w ramp, absolute jar spin
         self.frame_every = ti.field(i32, B)  #: steps between frames
         self.turn_trig = ti.Vector.field(3, f64, B)  #: (Δφ_jar, cos, sin) of the last step's turn (engine.drive)
+        self.psi_rec = ti.Vector.field(3, f64, B)  #: (t, cos ψ, sin ψ) of the last step's drive (engine.psi_trig)
+        self.psi_rot = ti.Vector.field(3, f64, B)  #: (δ, cos δ, sin δ), ψ's growth a step at constant speeds
         self.target = ti.field(i64, B)  #: step count to reach
         # class of a contact for the mechanism ledger (taimill.model.mechanisms) [B]
         self.stress_un = ti.field(f64, B)  #: m/s, least onset normal speed of an impact
@@ -123,6 +125,7 @@ class Fields:
         self.r = ti.field(f64, (B, N))  #: m
         self.m = ti.field(f64, (B, N))  #: kg
         self.inv_i = ti.field(f64, (B, N))  #: 1/(kg m²)
+        self.inv_m = ti.field(f64, (B, N))  #: 1/kg
 
         # ---- state [B, N]
         self.x = ti.field(vec3, (B, N))  #: position, jar frame, m

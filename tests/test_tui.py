@@ -360,3 +360,23 @@ def test_main_screen_snapshot(mill, tmp_path, snap_compare):
 
 def test_help_screen_snapshot(mill, tmp_path, snap_compare):
     assert snap_compare(frozen_app(mill, tmp_path), press=["question_mark"], terminal_size=SIZE)
+
+
+def test_pacing_gives_the_simulation_the_rest_of_each_frame_interval():
+    # a cycle = the stretch of simulation + a drawing/readout overhead: the pacing finds
+    # the stretch whose cycle is 1/FRAMES_PER_S, whatever the overhead
+    from taimill.tui.simloop import FIRST_STRETCH, FRAMES_PER_S, STRETCH_BOUNDS, pace
+
+    for overhead in (0.010, 0.017, 0.030):
+        stretch, mean = FIRST_STRETCH, None
+        for _ in range(200):
+            stretch, mean = pace(stretch, stretch + overhead, mean)
+        assert stretch + overhead == pytest.approx(1.0 / FRAMES_PER_S, rel=1e-3)
+    # one slow readout cycle (+60 ms) moves the next stretch by less than 2 ms
+    steady = 1.0 / FRAMES_PER_S - 0.017
+    nxt, _ = pace(steady, steady + 0.017 + 0.060, 1.0 / FRAMES_PER_S)
+    assert abs(nxt - steady) < 0.002
+    # bounds: a huge overhead cannot starve the simulation, nor a tiny one stall frames
+    assert pace(0.03, 1.0, 1.0)[0] == STRETCH_BOUNDS[0]
+    assert pace(0.19, 0.0, 0.0)[0] == STRETCH_BOUNDS[1]
+    assert pace(0.05, None, None) == (0.05, None)  # nothing measured yet: unchanged

@@ -267,6 +267,48 @@ def test_regime_features_balls_pinned_to_the_wall_are_rolling():
     assert r["regime_criteria"]["wall_fraction"] == 1.0 and r["regime_criteria"]["flight_fraction"] == 0.0
 
 
+@pytest.mark.parametrize("pairwise_chunk", [None, 1])
+def test_regime_features_over_many_frames_equal_one_contact_search_per_frame(pairwise_chunk, monkeypatch):
+    # a bed in a jar with corners, balls touching each other, the wall, both, neither:
+    # the batched search must count what frame_contacts finds frame by frame, bit for bit
+    import taimill.analysis.regime as regime
+
+    if pairwise_chunk:  # one frame per pair comparison, as for a mill of a few thousand balls
+        monkeypatch.setattr(regime, "PAIR_ELEMENTS", 1)
+    g = geometry("presets/p4-hm-fluorite.toml")
+    rng = np.random.default_rng(7)
+    n, nf = 12, 60
+    x = np.empty((nf, n, 3))
+    for f in range(nf):  # half the balls on the wall, the rest in pairs near the axis
+        th = rng.uniform(0, 2 * np.pi, n)
+        rho = np.where(np.arange(n) < 6, 0.99, 0.3) * rng.uniform(0.95, 1.0, n) * 0.030
+        x[f] = np.column_stack([rho * np.cos(th), rho * np.sin(th), rng.uniform(0.006, 0.03, n)])
+        x[f, 7] = x[f, 6] + [2 * R_BALL * (1 - 1e-3 * rng.uniform()), 0, 0]  # touching pair
+    block = {"time": np.arange(nf) * 0.04, "position": x, "velocity": rng.normal(0, 1, (nf, n, 3)),
+             "spin": rng.normal(0, 50, (nf, n, 3))}
+    got = RegimeFeatures(g, np.full(n, R_BALL))
+    got.frames(block)
+    want = {}
+    for f, t in enumerate(block["time"]):  # the contact search of one frame, as before the batching
+        w, om = g.jar.at(float(t))[0], g.plate.at(float(t))[0]
+        c = frame_contacts(g, np.full(n, R_BALL), x[f], block["velocity"][f], block["spin"][f], w,
+                           slack=regime.TOUCH_SLACK * R_BALL)
+        on_wall = np.unique(c["i"][c["j"] == SIDE]).astype(int)
+        bb = c["j"] >= 0
+        touching = np.unique(np.concatenate([on_wall, c["i"][bb], c["j"][bb]]).astype(int))
+        p = want.setdefault(int(t // regime.PIECE), np.zeros(7))
+        p[:3] += [n, len(on_wall), n - len(touching)]
+        if len(on_wall):
+            xx, vv = x[f][on_wall], block["velocity"][f][on_wall]
+            rho = np.hypot(xx[:, 0], xx[:, 1])
+            p[5] += float(np.sum((xx[:, 0] * vv[:, 1] - xx[:, 1] * vv[:, 0]) / np.maximum(rho, 1e-12)))
+            p[6] += (om - w) * float(np.sum(rho))
+    assert sorted(got.pieces) == sorted(want)
+    for k in want:
+        np.testing.assert_array_equal(got.pieces[k], want[k])
+    assert 0 < want[0][1] < want[0][0] and want[0][2] < want[0][0]  # some on the wall, some touching
+
+
 def _wall_lag_frames(g, v_of, t, drive=None):
     """8 balls on the side wall (centre radii within the touch slack, spread over
     0.05 mm) and 4 near the axis, velocities v_of(x, om, w) with the drive (Ω, w) of

@@ -43,7 +43,7 @@ import math
 
 import numpy as np
 
-from taimill.analysis.contacts import MAX_PAIRWISE, frame_contacts
+from taimill.analysis.contacts import MAX_PAIRWISE
 from taimill.analysis.rungeometry import SIDE, RunGeometry
 
 ROLLING_WALL, ROLLING_FLIGHT = 0.5, 0.35
@@ -51,6 +51,7 @@ CATARACT_FLIGHT = 0.55
 TOUCH_SLACK = 0.02  # of a ball radius
 IMPACT_UN = 0.05  # m/s, side-wall impacts counted for the flight chord
 FEATURE_RATE = 25.0  # frames per second examined
+PAIR_ELEMENTS = 1 << 20  # ball pairs compared at once across frames (× 8 B × 3 for the differences)
 PIECE = 1.0  # s, sub-window for the confidence
 
 THRESHOLDS = {"rolling": {"wall_fraction >=": ROLLING_WALL, "flight_fraction <": ROLLING_FLIGHT},
@@ -107,22 +108,39 @@ class RegimeFeatures:
             f += 1
 
     def frames(self, block: dict) -> None:
-        n = len(self.radii)
-        for f, t in self._sampled(block["time"]):
+        """Add the block's sampled frames. Who touches the side wall and who touches
+        another ball is found for all of them at once (NumPy over frames, a few frames
+        at a time for large mills); the per-frame sums then run in the order the frames
+        come, as one frame at a time would. (One frame_contacts call per frame cost ≈ 6 %
+        of a 12-ball run, most of it the contact speeds this does not need.)"""
+        picks = list(self._sampled(block["time"]))
+        if not picks:
+            return
+        n, r = len(self.radii), self.radii
+        slack = TOUCH_SLACK * self.g.ball_radius
+        rows = np.array([f for f, _ in picks])
+        x_all, v_all = np.asarray(block["position"])[rows], np.asarray(block["velocity"])[rows]
+        phi, _ = self.g.sdf(x_all[:, :, :2].reshape(-1, 2))
+        wall = phi.reshape(len(rows), n) < r + slack
+        touching = wall.copy()
+        if self.pairwise:
+            reach = r[:, None] + r[None, :] + slack
+            step = max(1, PAIR_ELEMENTS // max(1, n * n))
+            for a in range(0, len(rows), step):
+                x = x_all[a:a + step]
+                close = np.triu(np.linalg.norm(x[:, None, :, :] - x[:, :, None, :], axis=3) < reach, 1)
+                touching[a:a + step] |= close.any(axis=2) | close.any(axis=1)
+        for k, (f, t) in enumerate(picks):
             # the frame's own drive (a TUI run changes it live), else the config's ramps
             w = float(block["jar_spin"][f]) if "jar_spin" in block else self.g.jar.at(float(t))[0]
             om = float(block["plate_speed"][f]) if "plate_speed" in block else self.g.plate.at(float(t))[0]
-            c = frame_contacts(self.g, self.radii, block["position"][f], block["velocity"][f], block["spin"][f], w,
-                               slack=TOUCH_SLACK * self.g.ball_radius)
-            on_wall = np.unique(c["i"][c["j"] == SIDE]).astype(int)
-            bb = c["j"] >= 0
-            touching = np.unique(np.concatenate([on_wall, c["i"][bb], c["j"][bb]]).astype(int))
+            on_wall = np.flatnonzero(wall[k])
             p = self._piece(float(t))
             p[0] += n
             p[1] += len(on_wall)
-            p[2] += (n - len(touching)) if self.pairwise else math.nan
+            p[2] += (n - int(np.count_nonzero(touching[k]))) if self.pairwise else math.nan
             if len(on_wall):  # wall_lag: azimuthal jar-frame speed vs the plate frame's (Ω − w) ρ
-                x, v = block["position"][f][on_wall], block["velocity"][f][on_wall]
+                x, v = x_all[k][on_wall], v_all[k][on_wall]
                 rho = np.hypot(x[:, 0], x[:, 1])
                 p[5] += float(np.sum((x[:, 0] * v[:, 1] - x[:, 1] * v[:, 0]) / np.maximum(rho, 1e-12)))
                 p[6] += (om - w) * float(np.sum(rho))

@@ -232,8 +232,8 @@ class Engine:
 
     `mode` is "fused" or "parallel" (B = 1 only); `use_grid` builds the neighbour lists
     from the spatial hash instead of all pairs (identical lists, tests/test_neighbours;
-    no measurable speed difference at 12 balls, scripts/bench.py, so the hash is the
-    default and all pairs is the reference).
+    the Runner builds small mills' lists from all pairs, 7 % faster at 12 balls:
+    runner.ALL_PAIRS_UP_TO).
 
     Each mill's ball rows are padded to a multiple of BALL_PAD so that two mills never
     share a cache line: unpadded 12-ball mills on two threads ran 2-4x slower than one.

@@ -30,6 +30,11 @@ _initialised = False
 # machine (scripts/bench.py): fused 366 vs parallel 673 µs/step at 10 000 balls,
 # 5263 vs 4311 at 100 000.
 PARALLEL_ABOVE = 50_000
+# balls: up to this many a mill's neighbour lists are built from all pairs, not the
+# spatial hash (identical lists, so identical results). Measured per step, one thread,
+# 4 s runs, Xeon machine: CY steel 12 balls 0.239 vs 0.222 µs (-7 %), CY fluorite 1.14
+# vs 1.10, EFV zirconia 20 balls 0.483 vs 0.469, graphite 24 balls 2.65 vs 2.59.
+ALL_PAIRS_UP_TO = 32
 # simulated seconds per fused launch (≥ 10⁴ steps). Each launch is followed by a drain
 # into the sinks, whose NumPy work has a fixed cost per call (≈ 4 ms with the summary
 # sink): at 0.05 s that was 17 % of a 12-ball run, at 0.25 s ≈ 6 %, at 1 s ≈ 2 % (CPU
@@ -190,13 +195,16 @@ def status_message(code: int, ball: int, t: float, dt: float, pool: int | None =
 class Runner:
     """Advances a batch of mills to their step targets, streaming to one sink each."""
 
-    def __init__(self, specs: list[MillSpec], *, mode: str | None = None, use_grid: bool = True,
+    def __init__(self, specs: list[MillSpec], *, mode: str | None = None, use_grid: bool | None = None,
                  pool: int | None = None, reorder: bool | None = None):
-        """`pool`: rows of each mill's open-contact pool (tests; default state.pool_rows);
-        `reorder`: ball rows in grid order (tests; default: in parallel mode, Engine)."""
+        """`use_grid`: neighbour lists from the spatial hash (default above
+        ALL_PAIRS_UP_TO balls) or from all pairs (the same lists); `pool`: rows of each
+        mill's open-contact pool (tests; default state.pool_rows); `reorder`: ball rows
+        in grid order (tests; default: in parallel mode, Engine)."""
         init_taichi()
         self.specs = specs
         n = max(s.n for s in specs)
+        use_grid = n > ALL_PAIRS_UP_TO if use_grid is None else use_grid
         mode = mode or ("parallel" if len(specs) == 1 and n > PARALLEL_ABOVE else "fused")
         cells = 1 << max(grid_cells_for(s) for s in specs).bit_length()
         self.engine = _engine(len(specs), n, mode, use_grid, cells, frame_capacity(specs), pool, reorder)

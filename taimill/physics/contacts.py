@@ -118,17 +118,27 @@ def book_contact(F: ti.template(), b, row, is_new, t, u, udot, slip, p, fn, dn, 
 @ti.func
 def partner_slot(F: ti.template(), b, i, j, taken):
     """Slot of ball i holding partner j among the open ones (bits of `taken`), else the
-    first free slot, now marked for j; -1 if every slot is taken."""
-    found, free = -1, -1
-    for k in range(S.WALLS, S.SLOTS):
-        if taken & (1 << k):
-            if F.slot_partner[b, i, k] == j:
-                found = k
-        elif free < 0:
-            free = k
-    if found < 0 and free >= 0:
-        found = free
-        F.slot_partner[b, i, free] = j
+    lowest free slot, now marked for j; -1 if every slot is taken. Walks only the set
+    bits (a ball holds a few open contacts, not 12), then, for a new contact, the
+    lowest clear bit."""
+    found = -1
+    mask = taken >> S.WALLS
+    k = S.WALLS
+    while mask:
+        if mask & 1 and F.slot_partner[b, i, k] == j:
+            found = k
+        mask >>= 1
+        k += 1
+    if found < 0:
+        free = -1
+        k = S.WALLS
+        while k < S.SLOTS and free < 0:
+            if not taken & (1 << k):
+                free = k
+            k += 1
+        if free >= 0:
+            found = free
+            F.slot_partner[b, i, free] = j
     return found
 
 

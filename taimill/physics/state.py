@@ -82,30 +82,23 @@ class Fields:
         self.grid_cells = grid_cells
         f64, i32, i64 = ti.f64, ti.i32, ti.i64
         vec3 = ti.types.vector(3, f64)
-        per_mill = []
-
-        def mill(dtype, n=None):
-            """A per-mill [B] field, placed below with the others of its mill."""
-            f = ti.field(dtype) if n is None else ti.Vector.field(n, dtype)
-            per_mill.append(f)
-            return f
 
         # ---- model, per mill [B]
-        self.n_balls = mill(i32)
-        self.dt = mill(f64)  #: s
-        self.gravity = mill(f64)  #: m/s²
-        self.plate_radius = mill(f64)  #: R_p, m
-        self.height = mill(f64)  #: jar height, m
-        self.plate_ramp = mill(f64, 5)  #: Ω ramp (t0, start, end, T, phase0)
-        self.jar_ramp = mill(f64, 5)  #: w ramp, absolute jar spin
-        self.frame_every = mill(i32)  #: steps between frames
-        self.turn_trig = mill(f64, 3)  #: (Δφ_jar, cos, sin) of the last step's turn (engine.drive)
-        self.psi_rec = mill(f64, 3)  #: (t, cos ψ, sin ψ) of the last step's drive (engine.psi_trig)
-        self.psi_rot = mill(f64, 3)  #: (δ, cos δ, sin δ), ψ's growth a step at constant speeds
-        self.target = mill(i64)  #: step count to reach
+        self.n_balls = ti.field(i32, B)
+        self.dt = ti.field(f64, B)  #: s
+        self.gravity = ti.field(f64, B)  #: m/s²
+        self.plate_radius = ti.field(f64, B)  #: R_p, m
+        self.height = ti.field(f64, B)  #: jar height, m
+        self.plate_ramp = ti.Vector.field(5, f64, B)  #: Ω ramp (t0, start, end, T, phase0)
+        self.jar_ramp = ti.Vector.field(5, f64, B)  #: w ramp, absolute jar spin
+        self.frame_every = ti.field(i32, B)  #: steps between frames
+        self.turn_trig = ti.Vector.field(3, f64, B)  #: (Δφ_jar, cos, sin) of the last step's turn (engine.drive)
+        self.psi_rec = ti.Vector.field(3, f64, B)  #: (t, cos ψ, sin ψ) of the last step's drive (engine.psi_trig)
+        self.psi_rot = ti.Vector.field(3, f64, B)  #: (δ, cos δ, sin δ), ψ's growth a step at constant speeds
+        self.target = ti.field(i64, B)  #: step count to reach
         # class of a contact for the mechanism ledger (taimill.model.mechanisms) [B]
-        self.stress_un = mill(f64)  #: m/s, least onset normal speed of an impact
-        self.impact_age = mill(f64)  #: s, an impact older than this is persistent
+        self.stress_un = ti.field(f64, B)  #: m/s, least onset normal speed of an impact
+        self.impact_age = ti.field(f64, B)  #: s, an impact older than this is persistent
         # normal law per contact type [B, 2]: 0 ball-ball, 1 ball-wall
         self.law = ti.field(i32, (B, CONTACT_TYPES))
         self.law_k = ti.field(f64, (B, CONTACT_TYPES))  #: N/m^n
@@ -119,14 +112,14 @@ class Fields:
         self.v_d = ti.field(f64, (B, CONTACT_TYPES))  #: m/s
         self.mu_r = ti.field(f64, (B, CONTACT_TYPES))  #: 0: no rolling resistance
         # jar profile: boundary pieces, rows of taimill.model.geometry [B, MAX_PIECES]
-        self.n_pieces = mill(i32)
+        self.n_pieces = ti.field(i32, B)
         self.piece = ti.Vector.field(PIECE_COLUMNS, f64, (B, MAX_PIECES))
         self.piece_bound = ti.Vector.field(3, f64, (B, MAX_PIECES))  #: m, geometry.piece_bounds rows
         # uniform grid of the spatial hash [B]
-        self.grid_lo = mill(f64, 3)  #: m, corner of the grid
-        self.grid_h = mill(f64)  #: m, cell edge (≥ largest ball diameter)
-        self.grid_dim = mill(i32, 3)
-        self.skin = mill(f64)  #: m, Verlet-list skin
+        self.grid_lo = ti.Vector.field(3, f64, B)  #: m, corner of the grid
+        self.grid_h = ti.field(f64, B)  #: m, cell edge (≥ largest ball diameter)
+        self.grid_dim = ti.Vector.field(3, i32, B)
+        self.skin = ti.field(f64, B)  #: m, Verlet-list skin
 
         # ---- per ball [B, N]
         self.r = ti.field(f64, (B, N))  #: m
@@ -150,9 +143,9 @@ class Fields:
         ids = (B, N) if reorder else (1, 1)
         self.user_of = ti.field(i32, ids)  #: the ball's own index (its index in the MillSpec) of row i
         self.row_of = ti.field(i32, ids)  #: row of the ball with own index u (inverse of user_of)
-        self.step = mill(i64)
-        self.status = mill(i32)
-        self.bad_ball = mill(i32)  #: own index (user_id) of the ball that raised the status
+        self.step = ti.field(i64, B)
+        self.status = ti.field(i32, B)
+        self.bad_ball = ti.field(i32, B)  #: own index (user_id) of the ball that raised the status
 
         # ---- open contacts [B, N, SLOTS], their event data in a pool of rows [B, P]
         self.slot_mask = ti.field(i32, (B, N))  #: bit k set: slot k holds an open event
@@ -161,8 +154,8 @@ class Fields:
         self.slot_row = ti.field(i32, (B, N, SLOTS))  #: pool row of open slot k
         self.pool = ti.Vector.field(SLOT_DATA, f64, (B, P))  #: event accumulators of an open contact
         self.pool_free = ti.field(i32, (B, P))  #: stack of released rows, [0, pool_top)
-        self.pool_top = mill(i32)
-        self.pool_used = mill(i32)  #: rows ever handed out: [0, pool_used) are in use or on the stack
+        self.pool_top = ti.field(i32, B)
+        self.pool_used = ti.field(i32, B)  #: rows ever handed out: [0, pool_used) are in use or on the stack
         shared = (B, N, SLOTS) if share_pairs else (1, 1, 1)
         self.pair_f = ti.field(vec3, shared)  #: N, force of this step on the partner of slot k
         self.pair_tq = ti.field(vec3, shared)  #: N m, torque of this step on the partner of slot k
@@ -174,26 +167,21 @@ class Fields:
         self.sorted_ids = ti.field(i32, (B, N))
 
         # ---- Verlet neighbour lists [B, N, NEIGHBOURS]
-        self.rebuild = mill(i32)  #: 1: lists are stale
+        self.rebuild = ti.field(i32, B)  #: 1: lists are stale
         self.x_ref = ti.field(vec3, (B, N))  #: positions at the last build, m (scratch of reorder.py before it)
         self.nbr_count = ti.field(i32, (B, N))
         self.nbr = ti.field(i32, (B, N, NEIGHBOURS))  #: neighbour rows (scratch of reorder.py before a build)
 
         # ---- output buffers, drained by the launcher after every launch
         self.events = ti.Vector.field(NCOL, f64, (B, event_capacity))
-        self.n_events = mill(i32)
+        self.n_events = ti.field(i32, B)
         self.frame_t = ti.field(f64, (B, frame_capacity))
         self.frame_x = ti.field(vec3, (B, frame_capacity, N))
         self.frame_v = ti.field(vec3, (B, frame_capacity, N))
         self.frame_s = ti.field(vec3, (B, frame_capacity, N))
         self.frame_ledger = ti.Vector.field(len(LEDGER_FIELDS), f64, (B, frame_capacity))
         self.frame_drive = ti.Vector.field(len(DRIVE_FIELDS), f64, (B, frame_capacity))  #: φ_p, Ω, φ_j, w
-        self.n_frames = mill(i32)
-        # the per-mill fields of one mill lie together, padded by 64 bytes: as separate
-        # [B] arrays, mills on different threads wrote the same cache lines every step
-        # (step, psi_rec, ...), and two 12-ball mills on two threads ran 3.7x slower each
-        self._mill_pad = ti.Vector.field(8, f64)
-        ti.root.dense(ti.i, B).place(*per_mill, self._mill_pad)
+        self.n_frames = ti.field(i32, B)
 
 
 @ti.func

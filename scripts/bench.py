@@ -472,12 +472,16 @@ def reference_section(duration: float) -> tuple[list[dict], float | None]:
     if ok:
         print(f"  dt = {ok[0]['dt'] * 1e6:.4f} µs (automatic); µs/step is per mill-step; the cpu columns count this"
               " process's CPU time (all its threads): on a shared machine the per-core figure to quote")
-    batch = next((r for r in ok if r["mills"] == 2), None)
+    # a sweep runs one process per core, one mill at a time each (two mills on two
+    # threads of one process, the B = 2 row, run ≈ 4x slower each: docs/performance.md)
+    single = next((r for r in ok if r["mills"] == 1 and r["threads"] == 1), None)
     sweep = None
-    if batch:
-        sweep = SWEEP_POINTS * FULL_DURATION / batch["mill_seconds_per_wall_second"]
-        print(f"  a {SWEEP_POINTS}-point K sweep of {FULL_DURATION:g} s runs at the B = 2 rate would take"
-              f" ≈ {sweep / 60:.1f} min (estimate: other K values change the dynamics and so the cost)")
+    if single:
+        cores = os.cpu_count() or 1
+        sweep = SWEEP_POINTS * FULL_DURATION / (single["mill_seconds_per_wall_second"] * cores)
+        print(f"  a {SWEEP_POINTS}-point K sweep of {FULL_DURATION:g} s, one process per core ({cores}) at the"
+              f" one-thread rate, would take ≈ {sweep:.0f} s without start-up (estimate: other K values change the"
+              " dynamics and so the cost; section 4 measures it)")
     return rows, sweep
 
 

@@ -111,8 +111,9 @@ class RegimeFeatures:
         """Add the block's sampled frames. Who touches the side wall and who touches
         another ball is found for all of them at once (NumPy over frames, a few frames
         at a time for large mills); the per-frame sums then run in the order the frames
-        come, as one frame at a time would. (One frame_contacts call per frame cost ≈ 6 %
-        of a 12-ball run, most of it the contact speeds this does not need.)"""
+        come, as one frame at a time would. (One frame_contacts call per frame, with the
+        contact speeds this does not need, made the Python share of a 12-ball run 7.6 %
+        instead of 4.5 %.)"""
         picks = list(self._sampled(block["time"]))
         if not picks:
             return

@@ -12,13 +12,14 @@ the ball's own index; the lists are sorted by own index (neighbours.sort_list), 
 forces are summed in the same order as without the reorder, and results are
 bit-identical to it (tests/test_reorder.py).
 
-What moves: state (x, v, s), ball properties (r, m, inv_i; inv_m is recomputed from m, the same division as at the start), the side-wall bound
-(side_ref), the energy ledger (drive_work, dissipated, elastic, mech) and the open
-contacts (slot_mask, slot_row, slot_partner, whose partner rows are renumbered). The
-pool rows stay where they are (a slot keeps its row index). Per-step scratch (f, tau,
-drive_step, diss_step) is rewritten by the next force pass before it is read, x_ref,
-nbr and nbr_count by the list build that follows, and slot_closed is empty between
-steps (release_rows): none of them moves. x_ref and nbr are the scratch of the move.
+What moves: state (x, v, s), ball properties (r, m, inv_i; inv_m is recomputed from m,
+the same division as at the start), the side-wall bound (side_ref), the energy ledger
+(drive_work, dissipated, elastic, mech) and the open contacts (slot_mask, slot_row,
+slot_partner, whose partner rows are renumbered). The pool rows stay where they are (a
+slot keeps its row index). Per-step scratch (f, tau, drive_step, diss_step) is rewritten
+by the next force pass before it is read, x_ref, nbr and nbr_count by the list build
+that follows, and slot_closed is empty between steps (release_rows): none of them moves.
+x_ref and nbr are the scratch of the move.
 """
 
 import taichi as ti

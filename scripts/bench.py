@@ -347,11 +347,13 @@ def work_trajectory(task: dict) -> dict:
     with tempfile.TemporaryDirectory(prefix="taimill-bench-") as tmp:
         run(preset, ZarrSink(Path(tmp) / "warm.zarr"), duration=COMPILE_DURATION)
         out = Path(tmp) / "run.zarr"
-        start = clocks()
+        start, sys0 = clocks(), os.times().system
         steps = run(preset, ZarrSink(out), duration=task["duration"])["steps"]
         wall, cpu, busy = since(start)
+        sys_cpu = os.times().system - sys0
         size = sum(f.stat().st_size for f in out.rglob("*") if f.is_file())
-    return dict(dt=preset.dt, steps=steps, wall=wall, cpu=cpu, busy=busy, bytes=size, rss_mib=peak_rss_mib())
+    return dict(dt=preset.dt, steps=steps, wall=wall, cpu=cpu, sys=sys_cpu, busy=busy, bytes=size,
+                rss_mib=peak_rss_mib())
 
 
 WORKERS = {"reference": work_reference, "scaling": work_scaling, "recording": work_recording, "sweep": work_sweep,
@@ -675,14 +677,15 @@ def presets_section(duration: float) -> list[dict]:
 
 
 # ---- 7. dense trajectories
-DENSE_RATES = (100.0, 1e5, 100.0, 1e5)  # frames per simulated second, interleaved
+DENSE_RATES = (100.0, 1e5) * 3  # frames per simulated second, interleaved
 DENSE_TARGET = 2.0  # issue 19: 10^5 frames/s may cost at most twice the 100 frames/s run
 
 
 def trajectory_section(duration: float) -> dict:
     print(f"\n7. Dense trajectories: {PRESET.relative_to(ROOT)}, {duration:g} s simulated into a ZarrSink at 100 and"
           f" 10⁵ frames/s, one thread, interleaved; target: 10⁵ costs ≤ {DENSE_TARGET:g}x 100")
-    print(f"  {'frames/s':>8} {'wall s':>7} {'cpu s':>7} {'store MiB':>9} {'cpu/wall':>8} {'others':>6}")
+    print(f"  {'frames/s':>8} {'wall s':>7} {'cpu s':>7} {'user s':>7} {'sys s':>6} {'store MiB':>9} {'cpu/wall':>8}"
+          f" {'others':>6}")
     rows = []
     for rate in DENSE_RATES:
         r = measure(dict(kind="trajectory", rate=rate, duration=duration))
@@ -691,20 +694,24 @@ def trajectory_section(duration: float) -> dict:
             print(f"  {rate:>8g} failed: {r['error']}")
             continue
         m = load_metrics(r)
-        print(f"  {rate:>8g} {r['wall']:>7.2f} {r['cpu']:>7.2f} {r['bytes'] / 2**20:>9.1f} {m['cpu_per_wall']:>8.2f}"
-              f" {m['others']:>6.2f}", flush=True)
+        r["user"] = rows[-1]["user"] = r["cpu"] - r["sys"]
+        print(f"  {rate:>8g} {r['wall']:>7.2f} {r['cpu']:>7.2f} {r['user']:>7.2f} {r['sys']:>6.2f}"
+              f" {r['bytes'] / 2**20:>9.1f} {m['cpu_per_wall']:>8.2f} {m['others']:>6.2f}", flush=True)
     best = {}
     for rate in dict.fromkeys(DENSE_RATES):
         ok = [r for r in rows if r["rate"] == rate and "error" not in r]
         if ok:
-            best[rate] = {k: min(r[k] for r in ok) for k in ("wall", "cpu")}
+            best[rate] = {k: min(r[k] for r in ok) for k in ("wall", "cpu", "user")}
     ratio = {}
     if len(best) == 2:
-        ratio = {k: best[1e5][k] / best[100.0][k] for k in ("wall", "cpu")}
+        ratio = {k: best[1e5][k] / best[100.0][k] for k in ("wall", "cpu", "user")}
         verdict = {k: "met" if ratio[k] <= DENSE_TARGET else "MISSED" for k in ratio}
         print(f"  10⁵ / 100 frames/s (best of each): cpu {ratio['cpu']:.2f}x, wall {ratio['wall']:.2f}x; target ≤"
               f" {DENSE_TARGET:g}x: cpu {verdict['cpu']} (the acceptance figure: CPU seconds of every thread),"
               f" wall {verdict['wall']} (wall counts the disk and the machine's other load)")
+        print(f"  of which user {ratio['user']:.2f}x ({verdict['user']}): 'sys' is the operating system's, mostly"
+              " copying the store's bytes into the page cache (on a fresh VM its pages are first touched then:"
+              " ≈ 2-3 ms per MB)")
     return dict(rows=rows, ratio=ratio)
 
 

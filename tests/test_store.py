@@ -301,10 +301,46 @@ def test_chunks_are_the_bytes_zarr_writes(tmp_path, rows, chunk):
     assert compared == len(frames) * -(-rows // chunk) + len(events) * -(-n_events // (2 * chunk))
 
 
-@pytest.mark.parametrize("n_balls, frames", [(12, 58254), (1000, 699), (43690, 16), (43691, 1), (100_000, 1)])
+@pytest.mark.parametrize("n_balls, frames", [(12, 32768), (1000, 699), (43690, 16), (43691, 1), (100_000, 1)])
 def test_trajectory_chunks_are_bounded_in_bytes_and_one_frame_for_large_mills(tmp_path, n_balls, frames):
     # the sink holds one chunk of rows per array: up to 16 MiB per array, and only one
-    # frame above 1 MiB per frame (≈ 44 000 balls), where 6 frames cost ≈ 430 B a ball
+    # frame above 1 MiB per frame (≈ 44 000 balls), where 6 frames cost ≈ 430 B a ball;
+    # a small mill's chunk is at most a dense launch (32768 frames, not 16 MiB's 58254)
     sink = ZarrSink(tmp_path / "run.zarr")
     sink.start({"trajectory_rate": 1e5}, n_balls, np.full(n_balls, 0.001))
     assert sink.group["trajectory/position"].chunks == (frames, n_balls, 3)
+
+
+def test_arrays_are_sized_for_the_expected_frames_and_resized_only_at_the_end(tmp_path, monkeypatch):
+    # growing an array rewrites its metadata (≈ 12 ms a table): the sink creates the
+    # frame tables as long as duration × trajectory_rate, in whole chunks, and a run
+    # that delivers them resizes each table once, at flush, to its rows exactly
+    from taimill.store.run import _TableWriter, expected_frames
+
+    resized = []
+    real = _TableWriter._resize
+    monkeypatch.setattr(_TableWriter, "_resize", lambda self, rows: (resized.append((self.name, rows)), real(self, rows)))
+    sink = ZarrSink(tmp_path / "run.zarr", frame_chunk=8)
+    sink.start({"trajectory_rate": 100.0, "duration": 0.3}, N_BALLS, np.full(N_BALLS, 0.005))
+    assert sink.group["trajectory/position"].shape[0] == 32 and sink.group["energy/kinetic"].shape[0] == 32
+    assert sink.group["events/x"].shape[0] == 0  # events: not known ahead
+    rng = np.random.default_rng(12)
+    for size in (7, 9, 10, 6):  # 32 frames, as 0.3 s at 100 frames/s (+ the first and a spare)
+        sink.frames(frame_block(rng, size))
+        sink.energy(energy_block(rng, size))
+    sink.finish({}, "complete")
+    assert [r for r in resized if r[0] != "events"] == []  # exactly as long as expected: never resized
+    assert len(open_run(tmp_path / "run.zarr").frames["time"]) == 32
+    # a run that stops early (interrupted) shrinks each frame table once, at flush
+    sink = ZarrSink(tmp_path / "short.zarr", frame_chunk=8)
+    sink.start({"trajectory_rate": 100.0, "duration": 0.3}, N_BALLS, np.full(N_BALLS, 0.005))
+    sink.frames(frame_block(rng, 11))
+    sink.energy(energy_block(rng, 11))
+    resized.clear()
+    sink.finish({}, "interrupted")
+    assert sorted(r for r in resized if r[0] != "events") == [("energy", 11), ("trajectory", 11)]
+    assert zarr.open_array(tmp_path / "short.zarr" / "trajectory" / "spin", mode="r").shape == (11, N_BALLS, 3)
+    # no duration or no rate, or nonsense: nothing expected
+    assert [expected_frames(c) for c in ({}, {"trajectory_rate": 100.0}, {"duration": 1.0, "trajectory_rate": -1},
+                                          {"duration": float("nan"), "trajectory_rate": 5.0})] == [0, 0, 0, 0]
+    assert expected_frames({"duration": 0.3, "trajectory_rate": 100}) == 32

@@ -109,11 +109,15 @@ def snapshot(F: ti.template(), b, t, dr):
 
 @ti.func
 def can_step(F: ti.template(), b, margin):
+    """The next step of mill b may run: it is due, the event buffer has room for the
+    worst step, and the frame buffer for its frame if it takes one (so a launch of
+    frame_capacity × frame_every steps from a frame step fills the buffer exactly:
+    Runner)."""
     return (
         F.status[b] == S.OK
         and F.step[b] < F.target[b]
         and F.n_events[b] + margin <= F.event_capacity
-        and F.n_frames[b] < F.frame_capacity
+        and (F.n_frames[b] < F.frame_capacity or F.step[b] % F.frame_every[b] != 0)
     )
 
 

@@ -209,7 +209,11 @@ class Runner:
         cells = 1 << max(grid_cells_for(s) for s in specs).bit_length()
         self.engine = _engine(len(specs), n, mode, use_grid, cells, frame_capacity(specs), pool, reorder)
         every = min(s.frame_every for s in specs)
-        room = (self.engine.F.frame_capacity - 2) * every
+        # a launch of `room` steps from a frame step takes exactly frame_capacity frames
+        # (engine.can_step): a power of two, so that a dense trajectory's chunks (at most
+        # FRAME_CAPACITY[1] rows, store.run.frame_chunk_rows) end where launches end and
+        # the sink's commits find no rows outside whole chunks to journal
+        room = self.engine.F.frame_capacity * every
         if mode == "fused":
             steps = max(10_000, int(LAUNCH_SECONDS / min(s.dt for s in specs)))
             self.steps_per_launch = max(1, min(steps, room))

@@ -21,7 +21,8 @@ sink commits whenever a ledger block brings the simulated time `commit_every` (0
 past the last commit, i.e. after every 0.25 s launch of a run: the rows not yet in the
 arrays since the last commit, of every table, go to ONE journal file (`TABLE/start`,
 `TABLE/COLUMN` in a NumPy .npz, written atomically); readers append the journal's rows
-after `n_valid`.
+after `n_valid`. A dense trajectory's launch ends where a chunk ends
+(`FRAME_CHUNK_ROWS`), so its commits journal only events.
 Appending a sub-chunk block to each of the 47 arrays instead would cost a resize and a
 chunk rewrite per array, ≈ 0.2 s per commit, as long as the launch itself (zarr's cost
 per call); the journal costs ≈ 4 ms. Segments whose rows all reached the arrays are
@@ -87,8 +88,13 @@ JOURNAL_DESCRIPTION = ("rows committed since the last whole chunk of each table,
 # stores chunks itself (`_ChunkWriter`), but readers still pay zarr's cost per chunk and
 # each chunk is a file: 8192- or 16384-row chunks at 10⁵ frames/s cost the writer more
 # in file creation than they save in journal rows (replayed stream, 2 cores).
+# The upper bound is the runner's frame buffer (physics.runner.FRAME_CAPACITY): a
+# dense trajectory's launch fills that buffer exactly, 32768 frames, so each launch
+# ends a chunk and its commit journals no frame or ledger rows (65536-row chunks put
+# every other launch's 32768 rows in the journal, uncompressed: 0.5 of 2.3 s CPU for
+# 3 s at 10⁵ frames/s, Xeon machine).
 FRAME_CHUNK_SECONDS = 0.5
-FRAME_CHUNK_ROWS = (1024, 65536)
+FRAME_CHUNK_ROWS = (1024, 32768)
 # Every array: LZ4 after byte shuffling (Blosc), for floating-point columns faster and
 # smaller than zarr's default Zstandard (trajectories: 1.4 vs 3.1 µs per frame of 12
 # balls, compression 1.31 vs 1.08).
@@ -163,17 +169,22 @@ class _TableWriter:
 
     Each array has a buffer of one chunk: rows are copied into it once, and a full
     buffer is encoded and stored as that chunk (`_ChunkWriter`), so at most one chunk of
-    rows per array waits between calls. A flush stores the partial chunk too; its
+    rows per array waits between calls. A block holding whole chunks from the start of
+    one (a dense trajectory's launch) is encoded straight from the block. A flush stores the partial chunk too; its
     buffer stays, and the rows that follow complete the same chunk.
 
-    The arrays grow ahead of their rows, to twice the rows (in whole chunks) whenever
-    a chunk lands beyond their shape: a resize rewrites the array's metadata (≈ 1 ms
+    The arrays are created as long as the rows expected (`expected_frames`), and grow
+    ahead of their rows, to twice the rows (in whole chunks), whenever a chunk lands
+    beyond their shape: a resize rewrites the array's metadata (≈ 1 ms
     each in zarr 3.1, for every array of the table), so a run does a few per array
     instead of one per chunk. Rows past `n_valid` are not data (readers slice to it);
     `flush` leaves each array exactly `n_valid` rows long."""
 
-    def __init__(self, parent: zarr.Group, name: str, columns: dict[str, Column], chunk: int):
+    def __init__(self, parent: zarr.Group, name: str, columns: dict[str, Column], chunk: int, rows: int = 0):
+        """`rows`: the rows expected, in whole chunks: the arrays are created that long
+        (no chunk is written), so a run that delivers them resizes only at `flush`."""
         self.name, self.columns, self.chunk = name, columns, chunk
+        self.rows = -(-rows // chunk) * chunk
         # every_chunk_stored: chunks equal to the fill value are written too, so a
         # missing chunk below n_valid is damage, not zeros (RunStore.check)
         self.group = parent.create_group(
@@ -195,7 +206,7 @@ class _TableWriter:
     def _create(self, name: str, c: Column) -> zarr.Array:
         return self.group.create_array(
             name,
-            shape=(0, *c.row_shape),
+            shape=(self.rows, *c.row_shape),
             chunks=(self.chunk, *c.row_shape),
             dtype=c.dtype,
             fill_value=np.nan if c.dtype.startswith("f") else 0,
@@ -213,6 +224,12 @@ class _TableWriter:
             self.buffers = {k: np.empty((self.chunk, *c.row_shape), dtype=c.dtype) for k, c in self.columns.items()}
         done = 0
         while done < n:
+            if self.fill == 0 and n - done >= self.chunk:  # a whole chunk: stored from the block, not copied first
+                self._store({k: np.ascontiguousarray(v[done:done + self.chunk], dtype=self.columns[k].dtype)
+                             for k, v in rows.items()}, self.chunk)
+                self.start += self.chunk
+                done += self.chunk
+                continue
             m = min(n - done, self.chunk - self.fill)
             for k, v in rows.items():
                 np.copyto(self.buffers[k][self.fill:self.fill + m], v[done:done + m], casting="same_kind")
@@ -260,17 +277,22 @@ class _TableWriter:
         padded with the fill value, as zarr pads it), the arrays grown to hold it.
         The rows are committed by `_commit`, after their data: a writer killed
         meanwhile leaves the last commit readable."""
-        end = self.start + self.fill
         if self.fill < self.chunk:
             for k, b in self.buffers.items():
                 b[self.fill:] = self.arrays[k].fill_value
+        self._store(self.buffers, self.fill)
+        if self.fill == self.chunk:
+            self.start, self.fill = self.start + self.chunk, 0
+
+    def _store(self, data: dict[str, np.ndarray], rows: int) -> None:
+        """Store `data` (one chunk of rows per array, the first `rows` of them data) as
+        chunk start // chunk, the arrays grown to hold it."""
+        end = self.start + rows
         shape = self.arrays[next(iter(self.arrays))].shape[0]
         if end > shape:
             self._resize(max(end, -(-2 * end // self.chunk) * self.chunk))
-        self.writer.write(self.arrays, self.buffers, self.start // self.chunk, self.fill)
+        self.writer.write(self.arrays, data, self.start // self.chunk, rows)
         self.written = end
-        if self.fill == self.chunk:
-            self.start, self.fill = end, 0
 
     def _commit(self, exact: bool = False) -> None:
         """Record the rows stored by `_write_buffers` as committed (n_valid); `exact`:
@@ -346,6 +368,16 @@ def _blosc_encoder(arr: zarr.Array):
         return None
 
 
+def expected_frames(config: dict) -> int:
+    """Frames a run of `config` will write, from its duration (s) and trajectory_rate
+    (frames per simulated second); 0 if either is missing. The arrays are sized for
+    them up front: growing them costs a metadata write per array, ≈ 12 ms a table (10⁵
+    frames/s: 0.07 s of 1.8 s for 3 s simulated)."""
+    rate, duration = config.get("trajectory_rate"), config.get("duration")
+    ok = all(isinstance(x, (int, float)) and math.isfinite(x) and x > 0 for x in (rate, duration))
+    return int(min(rate * duration + 2, 1 << 40)) if ok else 0
+
+
 def frame_chunk_rows(rate) -> int:
     """Rows per trajectory and energy chunk for frames at `rate` per simulated second:
     a power of two near FRAME_CHUNK_SECONDS of frames, within FRAME_CHUNK_ROWS."""
@@ -419,9 +451,11 @@ class ZarrSink:
         frame_bytes = 24 * max(1, n_balls)  # one frame of one trajectory array
         cap = 1 if frame_bytes > LARGE_FRAME_BYTES else FRAME_CHUNK_BYTES // frame_bytes
         chunks["trajectory"] = max(1, min(chunks["trajectory"], cap))
+        frames = expected_frames(config)
+        rows = {"trajectory": frames, "events": 0, "energy": frames}
         for name, columns in layout(n_balls).items():
             with self._writing(name):
-                self.tables[name] = _TableWriter(self.group, name, columns, chunks[name])
+                self.tables[name] = _TableWriter(self.group, name, columns, chunks[name], rows[name])
         self.journaled = {name: 0 for name in self.tables}
         with self._writing(JOURNAL):
             if JOURNAL in self.group:  # a group reused for a new run

@@ -344,3 +344,28 @@ def test_arrays_are_sized_for_the_expected_frames_and_resized_only_at_the_end(tm
     assert [expected_frames(c) for c in ({}, {"trajectory_rate": 100.0}, {"duration": 1.0, "trajectory_rate": -1},
                                           {"duration": float("nan"), "trajectory_rate": 5.0})] == [0, 0, 0, 0]
     assert expected_frames({"duration": 0.3, "trajectory_rate": 100}) == 32
+
+
+def test_a_writer_killed_between_a_frame_and_its_ledger_row_reads_the_frames_both_hold(tmp_path):
+    # Each table commits through its own n_valid when a chunk lands. A dense
+    # trajectory lands a chunk of frames, then one of ledger rows, at every launch: a
+    # writer killed between the two (simulated: abandoned) has frames one launch ahead
+    # of the ledger. Readers take the frames both tables hold, from the arrays and the
+    # journal alike; a finished writer's tables must agree anyway (checked).
+    rng = np.random.default_rng(13)
+    sink = ZarrSink(tmp_path / "run.zarr", frame_chunk=8)
+    sink.start({}, N_BALLS, np.full(N_BALLS, 0.005))
+    frames, energy = [], []
+    for size in (8, 5, 3, 4):  # chunk, then rows left to the journal by the commits
+        frames.append(frame_block(rng, size))
+        end = sum(len(f["time"]) for f in frames)
+        energy.append(energy_block(rng, size) | {"time": np.arange(end - size, end, dtype=float)})  # commits every block
+        sink.frames(frames[-1])
+        sink.energy(energy[-1])
+    sink.frames(frame_block(rng, 12))  # two chunks land (n_valid 32), the ledger's rows never come
+    g = zarr.open_group(tmp_path / "run.zarr", mode="r")
+    assert (g["trajectory"].attrs["n_valid"], g["energy"].attrs["n_valid"]) == (32, 16)
+    run = open_run(tmp_path / "run.zarr")
+    assert run.status == "running"
+    assert_tables_equal(run.frames, cat(frames))  # 20 frames: 16 in chunks, 4 from the journal
+    assert_tables_equal(run.energy, cat(energy))

@@ -27,7 +27,10 @@ Appending a sub-chunk block to each of the 47 arrays instead would cost a resize
 chunk rewrite per array, ≈ 0.2 s per commit, as long as the launch itself (zarr's cost
 per call); the journal costs ≈ 4 ms. Segments whose rows all reached the arrays are
 deleted, the journal when the writer finishes. A SIGKILL at any moment thus leaves a
-readable store missing at most the launch under way. A write the operating system
+readable store missing at most the launch under way. (Tables commit one by one: a
+writer killed between a launch's frame chunk and its ledger chunk leaves the
+trajectory a launch ahead, and readers take the frames both tables hold:
+`RunStore._cut_to_whole_frames`.) A write the operating system
 refuses (a full disk) raises `StoreWriteError` naming the store; what was committed
 before stays readable.
 
@@ -726,8 +729,30 @@ class RunStore:
             self._check_table(table, columns, finished)
         self.rows = dict(self.n_valid)
         self._fold_journal()
+        if not finished and not self.attrs.get("energy_source"):
+            self._cut_to_whole_frames()
         self._check_summary()
         return self
+
+    def _cut_to_whole_frames(self) -> None:
+        """A frame is committed once its trajectory row and its ledger row are: each
+        table commits through its own `n_valid` when a chunk lands, so a writer killed
+        between the two leaves one of them up to a launch ahead (a dense trajectory,
+        whose every launch lands a chunk: tests/test_faults.py). Both are read up to
+        the frames they share."""
+        n = min(self.rows.get("trajectory", 0), self.rows.get("energy", 0))
+        for table in ("trajectory", "energy"):
+            if self.rows.get(table, 0) <= n:
+                continue
+            self.rows[table] = n
+            self.n_valid[table] = min(self.n_valid[table], n)
+            kept, left = [], n - self.n_valid[table]
+            for block in self.journal_rows.get(table, []):
+                m = min(left, len(next(iter(block.values()))))
+                if m:
+                    kept.append({k: v[:m] for k, v in block.items()})
+                left -= m
+            self.journal_rows[table] = kept
 
     def _fold_journal(self) -> None:
         """Rows of the journal segments that continue each table after its n_valid

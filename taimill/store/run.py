@@ -173,8 +173,9 @@ class _TableWriter:
     Each array has a buffer of one chunk: rows are copied into it once, and a full
     buffer is encoded and stored as that chunk (`_ChunkWriter`), so at most one chunk of
     rows per array waits between calls. A block holding whole chunks from the start of
-    one (a dense trajectory's launch) is encoded straight from the block. A flush stores the partial chunk too; its
-    buffer stays, and the rows that follow complete the same chunk.
+    one (a dense trajectory's launch) is encoded straight from the block. A flush
+    stores the partial chunk too; its buffer stays, and the rows that follow complete
+    the same chunk.
 
     The arrays are created as long as the rows expected (`expected_frames`), and grow
     ahead of their rows, to twice the rows (in whole chunks), whenever a chunk lands
@@ -738,7 +739,7 @@ class RunStore:
         """A frame is committed once its trajectory row and its ledger row are: each
         table commits through its own `n_valid` when a chunk lands, so a writer killed
         between the two leaves one of them up to a launch ahead (a dense trajectory,
-        whose every launch lands a chunk: tests/test_faults.py). Both are read up to
+        whose every launch lands a chunk; tests/test_store.py). Both are read up to
         the frames they share."""
         n = min(self.rows.get("trajectory", 0), self.rows.get("energy", 0))
         for table in ("trajectory", "energy"):

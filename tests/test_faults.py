@@ -454,3 +454,32 @@ def test_an_interrupt_waits_until_the_launch_reached_every_sink():
     assert raised == ["energy"]
     for sink in (first, second):
         assert [len(b) for b in (sink._events, sink._frames, sink._energy)] == [1, 1, 1]
+
+
+@pytest.mark.full
+@pytest.mark.parametrize("seed", range(3))
+def test_kill_9_of_a_dense_trajectory_reads_whole_frames(tmp_path, seed):
+    # At 10⁵ frames/s every launch lands a chunk of frames, then one of ledger rows,
+    # each table committing on its own, and the journal holds only events. A killed
+    # dense run reads as whole frames, each with its ledger row. (A kill between the
+    # two chunks, a few ms of a 0.1 s launch, is rarely hit here: test_store.py's
+    # abandoned writer is that case, deterministically.)
+    preset = tmp_path / "dense.toml"
+    preset.write_text((ROOT / PRESET).read_text().replace("trajectory_rate = 100\n", "trajectory_rate = 100000\n"))
+    out = tmp_path / "dense.zarr"
+    proc = start("run", preset, "--duration", DURATION, "--out", out, "--json")
+    try:
+        wait_for(lambda: (out / "trajectory" / "time" / "c").is_dir(), what="the first chunk")
+        time.sleep(random.Random(seed).uniform(0.0, 3.0))
+        assert proc.poll() is None, "the run ended before it was killed"
+    finally:
+        proc.kill()
+        proc.communicate()
+    store = open_run(out)
+    assert store.status == "running" and store.summary is None
+    t = store.frames["time"]
+    assert len(t) >= 32768 and len(store.energy["time"]) == len(t) == len(store.frames["position"])
+    np.testing.assert_array_equal(store.energy["time"], t)
+    assert (np.diff(t) > 0).all()
+    q = analyse(out).quantities()
+    assert q["status"].startswith("incomplete") and q["analysis_window"][1] == t[-1]

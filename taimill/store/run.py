@@ -188,7 +188,7 @@ class _TableWriter:
         """`rows`: the rows expected, in whole chunks: the arrays are created that long
         (no chunk is written), so a run that delivers them resizes only at `flush`."""
         self.name, self.columns, self.chunk = name, columns, chunk
-        self.rows = -(-rows // chunk) * chunk
+        self.initial_rows = -(-rows // chunk) * chunk
         # every_chunk_stored: chunks equal to the fill value are written too, so a
         # missing chunk below n_valid is damage, not zeros (RunStore.check)
         self.group = parent.create_group(
@@ -210,7 +210,7 @@ class _TableWriter:
     def _create(self, name: str, c: Column) -> zarr.Array:
         return self.group.create_array(
             name,
-            shape=(self.rows, *c.row_shape),
+            shape=(self.initial_rows, *c.row_shape),
             chunks=(self.chunk, *c.row_shape),
             dtype=c.dtype,
             fill_value=np.nan if c.dtype.startswith("f") else 0,

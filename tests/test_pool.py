@@ -21,8 +21,8 @@ ROOT = Path(__file__).resolve().parent.parent
 CY = str(ROOT / "presets" / "p4-cy-steel.toml")
 
 # Resident bytes per ball of the fields of a 10⁵-ball mill in parallel mode, its output
-# buffers (bounded by bytes, not per ball) left out: 1270 B measured with the pool of 6
-# rows a ball (≈ 1900 B with the 15 slots of event data per ball).
+# buffers (bounded by bytes, not per ball) left out: 1210 B measured with the pool of 6
+# rows a ball, 4 of them its home rows (≈ 1900 B with the 15 slots of event data per ball).
 FIELD_BYTES_PER_BALL = 1400
 
 _MEASURE = """
@@ -88,12 +88,35 @@ def _digest(table):
 CLUSTER_EVENTS, CLUSTER_DIGEST = 62, "50af734bf802936ba25aba33"
 
 
-@pytest.mark.parametrize("mode,pool", [("fused", None), ("fused", 40), ("parallel", None), ("parallel", 40)])
+@pytest.mark.parametrize("mode,pool", [("fused", None), ("fused", 44), ("parallel", None), ("parallel", 44)])
 def test_a_many_contact_cluster_books_every_event_as_the_slots_did(mode, pool):
-    # 40 rows: the 36 contacts of the first step and little more, reused all along
+    # default: 4 home rows a ball (ball 0 takes 8 shared rows more); 44 rows: 1 home row a
+    # ball and 28 shared, the 36 contacts of the first step and little more, reused all along
     sink = MemorySink()
     Runner([_cluster_spec()], mode=mode, pool=pool).run([sink])
     table = sink.event_table
     assert len(table["t_start"]) == CLUSTER_EVENTS
     assert (table["body_i"] == 0).sum() >= 12
     assert _digest(table) == CLUSTER_DIGEST
+
+
+@pytest.mark.parametrize("mode", ["fused", "parallel"])
+def test_contacts_take_their_owners_home_rows_first(mode):
+    # after the cluster's first step: each ball's open contacts sit in its own home rows
+    # (rows i·home …, read in memory order by the force pass); only ball 0, owning 12,
+    # spills the 8 beyond its 4 home rows into the shared part of the pool
+    runner = Runner([_cluster_spec()], mode=mode)
+    runner.engine.advance(1)
+    F = runner.engine.F
+    assert F.step[0] == 1
+    assert F.home == 4 and F.spill_base == 4 * F.N
+    mask, rows = F.slot_mask.to_numpy()[0], F.slot_row.to_numpy()[0]
+    shared = []
+    for i in range(13):
+        open_rows = [rows[i, k] for k in range(15) if mask[i] >> k & 1]
+        home = [r for r in open_rows if r < F.spill_base]
+        assert all(i * 4 <= r < i * 4 + 4 for r in home), (i, open_rows)
+        assert len(home) == min(4, len(open_rows))
+        shared += [r for r in open_rows if r >= F.spill_base]
+    assert sorted(shared) == list(range(F.spill_base, F.spill_base + 8))
+    assert (F.home_used.to_numpy()[0, :13] == [(1 << min(4, bin(int(m)).count("1"))) - 1 for m in mask[:13]]).all()

@@ -15,11 +15,12 @@ overlap u > 0 — its onset normal speed u̇_n and slip u̇_t are taken from tha
 state, before its first force acts — and closes at the first step without overlap.
 
 A slot holds only the index of its event's row in the mill's pool of open-contact rows
-(state.pool_rows: at most 6 a ball in large mills; a dense bed has 2-3, not 15). A contact that opens takes a released row from the pool's free stack, else a
-new one (atomic pop and count: in parallel mode the balls of the mill do it
-concurrently); rows are released only after the force pass, by release_rows in the
-integration pass, so pops and pushes never race. Which row a contact gets changes
-nothing but where its sums are kept.
+(state.pool_rows: at most 6 a ball in large mills; a dense bed has 2-3, not 15). A
+contact that opens takes one of its owner's home rows (state.HOME_ROWS) if one is free,
+else a released row from the shared stack, else a new one (atomic pop and count: in
+parallel mode the balls of the mill do it concurrently); rows are released only after
+the force pass, by release_rows in the integration pass, so pops and pushes never race.
+Which row a contact gets changes nothing but where its sums are kept.
 """
 
 import taichi as ti
@@ -53,19 +54,29 @@ def contact_response(F: ti.template(), b, ct: ti.template(), u, nrm, vrel, m_eff
 
 @ti.func
 def slot_row(F: ti.template(), b, i, k, is_new):
-    """Pool row of the event in slot k of ball i: its own if open, else a row taken
-    from the free stack; -1 (and POOL_FULL flagged) if none is left."""
+    """Pool row of the event in slot k of ball i: its own if open, else a free home
+    row of ball i, else a row taken from the shared stack; -1 (and POOL_FULL flagged)
+    if none is left."""
     row = -1
     if is_new:
-        e = ti.atomic_sub(F.pool_top[b], 1) - 1  # a released row first
-        if e >= 0:
-            row = F.pool_free[b, e]
-        else:  # the stack is empty (its top goes negative until release_rows): a new row
-            row = ti.atomic_add(F.pool_used[b], 1)
-            if row >= F.pool_capacity:
-                row = -1
-                F.status[b] = S.POOL_FULL
-                F.bad_ball[b] = S.user_id(F, b, i)
+        if ti.static(F.home > 0):  # only ball i's thread touches its home rows: no atomics
+            used = F.home_used[b, i]
+            h = 0
+            while h < F.home and used & (1 << h):
+                h += 1
+            if h < F.home:
+                row = i * F.home + h
+                F.home_used[b, i] = used | (1 << h)
+        if row < 0:
+            e = ti.atomic_sub(F.pool_top[b], 1) - 1  # a released row first
+            if e >= 0:
+                row = F.pool_free[b, e]
+            else:  # the stack is empty (its top goes negative until release_rows): a new row
+                row = F.spill_base + ti.atomic_add(F.pool_used[b], 1)
+                if row >= F.pool_capacity:
+                    row = -1
+                    F.status[b] = S.POOL_FULL
+                    F.bad_ball[b] = S.user_id(F, b, i)
         if row >= 0:
             F.slot_row[b, i, k] = row
     else:
@@ -82,14 +93,19 @@ def pool_settle(F: ti.template(), b):
 
 @ti.func
 def release_rows(F: ti.template(), b, i):
-    """Give the pool rows of ball i's events closed in this step's force pass back to
-    the free stack (a pass without pops: pool_settle first)."""
+    """Give the pool rows of ball i's events closed in this step's force pass back: a
+    home row to ball i, a shared one to the free stack (a pass without pops:
+    pool_settle first)."""
     gone = F.slot_closed[b, i]
     if gone:
         k = 0
         while gone:
             if gone & 1:
-                F.pool_free[b, ti.atomic_add(F.pool_top[b], 1)] = F.slot_row[b, i, k]
+                row = F.slot_row[b, i, k]
+                if row < F.spill_base:
+                    F.home_used[b, i] &= ~(1 << (row - i * F.home))
+                else:
+                    F.pool_free[b, ti.atomic_add(F.pool_top[b], 1)] = row
             gone >>= 1
             k += 1
         F.slot_closed[b, i] = 0

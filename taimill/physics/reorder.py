@@ -15,8 +15,9 @@ bit-identical to it (tests/test_reorder.py).
 What moves: state (x, v, s), ball properties (r, m, inv_i; inv_m is recomputed from m,
 the same division as at the start), the side-wall bound (side_ref), the energy ledger
 (drive_work, dissipated, elastic, mech) and the open contacts (slot_mask, slot_row,
-slot_partner, whose partner rows are renumbered). The pool rows stay where they are (a
-slot keeps its row index). Per-step scratch (f, tau, drive_step, diss_step) is rewritten
+slot_partner, whose partner rows are renumbered). A ball's home rows of the pool move
+with it (state.HOME_ROWS: its slots' home row numbers follow, home_used is rebuilt from
+them); the shared rows stay where they are. Per-step scratch (f, tau, drive_step, diss_step) is rewritten
 by the next force pass before it is read, x_ref, nbr and nbr_count by the list build
 that follows, and slot_closed is empty between steps (release_rows): none of them moves.
 x_ref and nbr are the scratch of the move.
@@ -92,6 +93,27 @@ def _put_mech(F: ti.template(), c0: ti.template()):
 
 
 @ti.kernel
+def _gather_home(F: ti.template(), h: ti.template(), c0: ti.template()):
+    """Columns c0..c0+2 of home row h of every ball."""
+    for q in range(F.n_balls[0]):
+        data = F.pool[0, F.sorted_ids[0, q] * F.home + h]
+        row = ti.Vector.zero(ti.f64, 3)
+        for k in ti.static(range(3)):
+            if ti.static(c0 + k < S.SLOT_DATA):
+                row[k] = data[c0 + k]
+        F.x_ref[0, q] = row
+
+
+@ti.kernel
+def _put_home(F: ti.template(), h: ti.template(), c0: ti.template()):
+    for q in range(F.n_balls[0]):
+        row = F.x_ref[0, q]
+        for k in ti.static(range(3)):
+            if ti.static(c0 + k < S.SLOT_DATA):
+                F.pool[0, q * F.home + h][c0 + k] = row[k]
+
+
+@ti.kernel
 def _gather_ints(F: ti.template()):
     for q in range(F.n_balls[0]):
         p = F.sorted_ids[0, q]
@@ -99,11 +121,14 @@ def _gather_ints(F: ti.template()):
         F.nbr[0, q, 0] = mask
         F.nbr[0, q, 1] = F.user_of[0, p]
         for k in ti.static(range(S.SLOTS)):
-            F.nbr[0, q, 2 + k] = F.slot_row[0, p, k]
+            row = F.slot_row[0, p, k]
             partner = -1
-            if ti.static(k >= S.WALLS):
-                if mask & (1 << k):
+            if mask & (1 << k):
+                if row < F.spill_base:  # a home row: it moved with the ball
+                    row += (q - p) * F.home
+                if ti.static(k >= S.WALLS):
                     partner = F.cell_of[0, F.slot_partner[0, p, k]]
+            F.nbr[0, q, 2 + k] = row
             F.nbr[0, q, 2 + S.SLOTS + k] = partner
 
 
@@ -111,13 +136,19 @@ def _gather_ints(F: ti.template()):
 def _put_ints(F: ti.template()):
     """Also the grid's order: the rows are now in it (sorted_ids the identity)."""
     for q in range(F.n_balls[0]):
-        F.slot_mask[0, q] = F.nbr[0, q, 0]
+        mask = F.nbr[0, q, 0]
+        F.slot_mask[0, q] = mask
         u = F.nbr[0, q, 1]
         F.user_of[0, q] = u
         F.row_of[0, u] = q
+        home = 0
         for k in ti.static(range(S.SLOTS)):
-            F.slot_row[0, q, k] = F.nbr[0, q, 2 + k]
+            row = F.nbr[0, q, 2 + k]
+            F.slot_row[0, q, k] = row
             F.slot_partner[0, q, k] = F.nbr[0, q, 2 + S.SLOTS + k]
+            if mask & (1 << k) and row < F.spill_base:
+                home |= 1 << (row - q * F.home)
+        F.home_used[0, q] = home
         F.sorted_ids[0, q] = q
 
 
@@ -135,5 +166,9 @@ def permute(F):
         _gather_mech(F, c0)
         _put_mech(F, c0)
     _inverse_masses(F)
+    for h in range(F.home):
+        for c0 in range(0, S.SLOT_DATA, 3):
+            _gather_home(F, h, c0)
+            _put_home(F, h, c0)
     _gather_ints(F)  # last: it needs the old sorted_ids, _put_ints makes them the identity
     _put_ints(F)

@@ -48,6 +48,14 @@ NEIGHBOURS = 32
 # took memory only for rows in use; it was dropped after one unexplained segfault.)
 POOL_FLOOR = 4096
 POOL_PER_BALL = 6
+# The first HOME_ROWS rows of the pool per ball are that ball's own (rows i·home to
+# i·home + home - 1, moved with the ball by reorder.py), the rest a shared stack. A
+# contact takes one of its owner's home rows while one is free: the force pass walks
+# the balls in row order, so their event data is read in memory order. Rows taken from
+# the shared stack scatter over the pool as contacts open and close; on a settled bed of
+# 10⁵ balls the load of such a row missed the cache at every step of every contact
+# (a fifth of the force pass). A bed's ball owns 2-3 open contacts, at most 6 + a wall.
+HOME_ROWS = 4
 
 
 def pool_rows(balls: int) -> int:
@@ -79,6 +87,10 @@ class Fields:
         self.reorder = reorder
         self.B, self.N, self.event_capacity, self.frame_capacity = B, N, event_capacity, frame_capacity
         self.pool_capacity = P
+        # home rows per ball; at least a third of the pool stays shared, for the balls that
+        # own more contacts than their home rows hold (a large mill: 4 a ball and 2 shared)
+        self.home = min(HOME_ROWS, (P - P // 3) // N)
+        self.spill_base = N * self.home  # rows [spill_base, P): the shared stack's
         self.grid_cells = grid_cells
         f64, i32, i64 = ti.f64, ti.i32, ti.i64
         vec3 = ti.types.vector(3, f64)
@@ -153,9 +165,10 @@ class Fields:
         self.slot_partner = ti.field(i32, (B, N, SLOTS))  #: partner ball of slot k ≥ WALLS
         self.slot_row = ti.field(i32, (B, N, SLOTS))  #: pool row of open slot k
         self.pool = ti.Vector.field(SLOT_DATA, f64, (B, P))  #: event accumulators of an open contact
-        self.pool_free = ti.field(i32, (B, P))  #: stack of released rows, [0, pool_top)
+        self.home_used = ti.field(i32, (B, N))  #: bit h set: home row h of the ball holds an open contact
+        self.pool_free = ti.field(i32, (B, max(1, P - self.spill_base)))  #: stack of released shared rows, [0, pool_top)
         self.pool_top = ti.field(i32, B)
-        self.pool_used = ti.field(i32, B)  #: rows ever handed out: [0, pool_used) are in use or on the stack
+        self.pool_used = ti.field(i32, B)  #: shared rows ever handed out: spill_base + [0, pool_used)
         shared = (B, N, SLOTS) if share_pairs else (1, 1, 1)
         self.pair_f = ti.field(vec3, shared)  #: N, force of this step on the partner of slot k
         self.pair_tq = ti.field(vec3, shared)  #: N m, torque of this step on the partner of slot k

@@ -17,10 +17,10 @@ the same division as at the start), the side-wall bound (side_ref), the energy l
 (drive_work, dissipated, elastic, mech) and the open contacts (slot_mask, slot_row,
 slot_partner, whose partner rows are renumbered). A ball's home rows of the pool move
 with it (state.HOME_ROWS: its slots' home row numbers follow, home_used is rebuilt from
-them); the shared rows stay where they are. Per-step scratch (f, tau, drive_step, diss_step) is rewritten
-by the next force pass before it is read, x_ref, nbr and nbr_count by the list build
-that follows, and slot_closed is empty between steps (release_rows): none of them moves.
-x_ref and nbr are the scratch of the move.
+them); the shared rows stay where they are. Per-step scratch (f, tau, drive_step,
+diss_step) is rewritten by the next force pass before it is read, x_ref, nbr and
+nbr_count by the list build that follows, and slot_closed is empty between steps
+(release_rows): none of them moves. x_ref and nbr are the scratch of the move.
 """
 
 import taichi as ti

@@ -119,4 +119,3 @@ def test_contacts_take_their_owners_home_rows_first(mode):
         assert len(home) == min(4, len(open_rows))
         shared += [r for r in open_rows if r >= F.spill_base]
     assert sorted(shared) == list(range(F.spill_base, F.spill_base + 8))
-    assert (F.home_used.to_numpy()[0, :13] == [(1 << min(4, bin(int(m)).count("1"))) - 1 for m in mask[:13]]).all()

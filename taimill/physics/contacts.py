@@ -53,20 +53,30 @@ def contact_response(F: ti.template(), b, ct: ti.template(), u, nrm, vrel, m_eff
 
 
 @ti.func
-def slot_row(F: ti.template(), b, i, k, is_new):
-    """Pool row of the event in slot k of ball i: its own if open, else a free home
-    row of ball i, else a row taken from the shared stack; -1 (and POOL_FULL flagged)
-    if none is left."""
+def slot_row(F: ti.template(), b, i, k, is_new, taken):
+    """Pool row of the event in slot k of ball i: its own if open, else a home row of
+    ball i that none of its slots holding a row (bits of `taken`: open before this step
+    or opened in it; closed ones keep theirs until release_rows) has, else a row taken
+    from the shared stack; -1 (and POOL_FULL flagged) if none is left. Only ball i's
+    thread touches its home rows: no atomics."""
     row = -1
     if is_new:
-        if ti.static(F.home > 0):  # only ball i's thread touches its home rows: no atomics
-            used = F.home_used[b, i]
+        if ti.static(F.home > 0):
+            used = 0
+            mask = taken
+            s = 0
+            while mask:
+                if mask & 1:
+                    r = F.slot_row[b, i, s] - i * F.home
+                    if 0 <= r and r < F.home:
+                        used |= 1 << r
+                mask >>= 1
+                s += 1
             h = 0
             while h < F.home and used & (1 << h):
                 h += 1
             if h < F.home:
                 row = i * F.home + h
-                F.home_used[b, i] = used | (1 << h)
         if row < 0:
             e = ti.atomic_sub(F.pool_top[b], 1) - 1  # a released row first
             if e >= 0:
@@ -102,9 +112,7 @@ def release_rows(F: ti.template(), b, i):
         while gone:
             if gone & 1:
                 row = F.slot_row[b, i, k]
-                if row < F.spill_base:
-                    F.home_used[b, i] &= ~(1 << (row - i * F.home))
-                else:
+                if row >= F.spill_base:  # a home row is free once no slot holds it
                     F.pool_free[b, ti.atomic_add(F.pool_top[b], 1)] = row
             gone >>= 1
             k += 1
@@ -286,7 +294,7 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
                 F.bad_ball[b] = S.user_id(F, b, i)
             else:
                 is_new = (was_open & (1 << k)) == 0
-                row = slot_row(F, b, i, k, is_new)
+                row = slot_row(F, b, i, k, is_new, was_open | seen)
                 if row >= 0:
                     bit = 1 << k
                     impact = book_contact(F, b, row, is_new, t, u, udot, slip, xi + ai, fn, dn, dtf)
@@ -331,7 +339,7 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
             diss += dn + dtf
             stored += el
             is_new = (was_open & (1 << wall)) == 0
-            row = slot_row(F, b, i, wall, is_new)
+            row = slot_row(F, b, i, wall, is_new, was_open | seen)
             impact = False
             if row >= 0:
                 seen |= 1 << wall

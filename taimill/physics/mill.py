@@ -112,7 +112,6 @@ def _load_mill(F: ti.template(), b: ti.i32, n: ti.i32, n_pieces: ti.i32, pieces:
         F.side_ref[b, i] = ti.Vector([0.0, 0.0, -1.0])  # no bound yet: evaluate the profile first
         F.slot_mask[b, i] = 0
         F.slot_closed[b, i] = 0
-        F.home_used[b, i] = 0
         if ti.static(F.reorder):  # rows in the spec's order until the first list build
             F.user_of[b, i] = i
             F.row_of[b, i] = i

@@ -16,11 +16,11 @@ What moves: state (x, v, s), ball properties (r, m, inv_i; inv_m is recomputed f
 the same division as at the start), the side-wall bound (side_ref), the energy ledger
 (drive_work, dissipated, elastic, mech) and the open contacts (slot_mask, slot_row,
 slot_partner, whose partner rows are renumbered). A ball's home rows of the pool move
-with it (state.HOME_ROWS: its slots' home row numbers follow, home_used is rebuilt from
-them); the shared rows stay where they are. Per-step scratch (f, tau, drive_step,
-diss_step) is rewritten by the next force pass before it is read, x_ref, nbr and
-nbr_count by the list build that follows, and slot_closed is empty between steps
-(release_rows): none of them moves. x_ref and nbr are the scratch of the move.
+with it (state.HOME_ROWS: its slots' home row numbers follow); the shared rows stay
+where they are. Per-step scratch (f, tau, drive_step, diss_step) is rewritten by the
+next force pass before it is read, x_ref, nbr and nbr_count by the list build that
+follows, and slot_closed is empty between steps (release_rows): none of them moves.
+x_ref and nbr are the scratch of the move.
 """
 
 import taichi as ti
@@ -139,19 +139,13 @@ def _gather_ints(F: ti.template()):
 def _put_ints(F: ti.template()):
     """Also the grid's order: the rows are now in it (sorted_ids the identity)."""
     for q in range(F.n_balls[0]):
-        mask = F.nbr[0, q, 0]
-        F.slot_mask[0, q] = mask
+        F.slot_mask[0, q] = F.nbr[0, q, 0]
         u = F.nbr[0, q, 1]
         F.user_of[0, q] = u
         F.row_of[0, u] = q
-        home = 0
         for k in ti.static(range(S.SLOTS)):
-            row = F.nbr[0, q, 2 + k]
-            F.slot_row[0, q, k] = row
+            F.slot_row[0, q, k] = F.nbr[0, q, 2 + k]
             F.slot_partner[0, q, k] = F.nbr[0, q, 2 + S.SLOTS + k]
-            if mask & (1 << k) and row < F.spill_base:
-                home |= 1 << (row - q * F.home)
-        F.home_used[0, q] = home
         F.sorted_ids[0, q] = q
 
 

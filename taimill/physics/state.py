@@ -165,7 +165,6 @@ class Fields:
         self.slot_partner = ti.field(i32, (B, N, SLOTS))  #: partner ball of slot k ≥ WALLS
         self.slot_row = ti.field(i32, (B, N, SLOTS))  #: pool row of open slot k
         self.pool = ti.Vector.field(SLOT_DATA, f64, (B, P))  #: event accumulators of an open contact
-        self.home_used = ti.field(i32, (B, N))  #: bit h set: home row h of the ball holds an open contact
         self.pool_free = ti.field(i32, (B, max(1, P - self.spill_base)))  #: stack of released shared rows, [0, pool_top)
         self.pool_top = ti.field(i32, B)
         self.pool_used = ti.field(i32, B)  #: shared rows ever handed out: spill_base + [0, pool_used)

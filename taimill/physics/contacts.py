@@ -35,21 +35,29 @@ from taimill.physics.walls import wall_near
 def contact_response(F: ti.template(), b, ct: ti.template(), u, nrm, vrel, m_eff, inv_mass_t, dt):
     """Force on the first body at a contact of type ct (0 ball-ball, 1 ball-wall) with
     overlap u, unit normal nrm (first body → second), relative contact-point velocity
-    vrel. Returns (force, u̇, slip, F_n, normal dissipation, friction dissipation, U).
-    Rolling resistance (if on) is added by the caller, who knows the spins; its work is
-    booked with the friction work (the shear part of the contact's dissipation)."""
+    vrel. Returns (force, u̇, slip, F_n, elastic F_n, friction force). Rolling
+    resistance (if on) is added by the caller, who knows the spins; its work is booked
+    with the friction work (the shear part of the contact's dissipation)."""
     udot = vrel.dot(nrm)
     slip = vrel - udot * nrm
     k, n = F.law_k[b, ct], F.law_n[b, ct]
     fn, fel = normal_force(F.law[b, ct], u, udot, k, n, F.law_c[b, ct], F.law_d[b, ct], m_eff)
     ft = friction_force(slip, fn, F.mu_s[b, ct], F.mu_d[b, ct], F.v_s[b, ct], F.v_d[b, ct], inv_mass_t, dt)
-    # Dissipation over the step, (F - F_el) u̇ (damper and clamp) and -F_t · slip
-    # (friction), with u̇ and slip at mid-step as this contact's own impulse changes them:
-    # start-of-step values overstate it, most for stiff near-stick friction.
+    return -fn * nrm + ft, udot, slip, fn, fel, ft
+
+
+@ti.func
+def contact_energy(F: ti.template(), b, ct: ti.template(), u, udot, slip, fn, fel, ft, m_eff, inv_mass_t, dt):
+    """What a contact's owner books of its response (contact_response): (normal
+    dissipation, friction dissipation, stored elastic energy U). Dissipation over the
+    step, (F - F_el) u̇ (damper and clamp) and -F_t · slip (friction), with u̇ and slip at
+    mid-step as this contact's own impulse changes them: start-of-step values overstate
+    it, most for stiff near-stick friction. (Only the owner's visit computes it: 3 %
+    of a bed's force pass.)"""
     udot_mid = udot - 0.5 * fn * dt / m_eff
     dn = (fn - fel) * udot_mid * dt
     dtf = (-ft.dot(slip) - 0.5 * ft.norm_sqr() * inv_mass_t * dt) * dt
-    return -fn * nrm + ft, udot, slip, fn, dn, dtf, elastic_energy(u, fel, n)
+    return dn, dtf, elastic_energy(u, fel, F.law_n[b, ct])
 
 
 @ti.func
@@ -276,17 +284,20 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
         wz = ti.Vector([0.0, 0.0, w])
         vrel = (F.v[b, i] + (F.s[b, i] - wz).cross(ai)) - (F.v[b, j] + (F.s[b, j] - wz).cross(aj))
         mi, mj = F.m[b, i], F.m[b, j]
+        m_eff = mi * mj / (mi + mj)
         inv_mass_t = (F.inv_m[b, i] + F.inv_m[b, j]) + (ai.norm_sqr() * F.inv_i[b, i] + aj.norm_sqr() * F.inv_i[b, j])
-        fc, udot, slip, fn, dn, dtf, el = contact_response(F, b, 0, u, nrm, vrel, mi * mj / (mi + mj), inv_mass_t, dt)
+        fc, udot, slip, fn, fel, ft = contact_response(F, b, 0, u, nrm, vrel, m_eff, inv_mass_t, dt)
         f, tq = fc, ai.cross(fc)
         m_roll = ti.Vector([0.0, 0.0, 0.0])  # rolling-resistance torque on i; on j it is -m_roll to the bit
+        d_roll = 0.0
         if F.mu_r[b, 0] > 0.0:  # off: not computed, runs without it stay bit-identical
-            mr, d_roll = rolling_torque(F.s[b, i] - F.s[b, j], nrm, fn, F.mu_r[b, 0], ri * rj / (ri + rj),
-                                    F.inv_i[b, i] + F.inv_i[b, j], dt)
-            m_roll = mr
-            tq += mr
-            dtf += d_roll
+            m_roll, d_roll = rolling_torque(F.s[b, i] - F.s[b, j], nrm, fn, F.mu_r[b, 0], ri * rj / (ri + rj),
+                                            F.inv_i[b, i] + F.inv_i[b, j], dt)
+            tq += m_roll
         if S.owns(F, b, i, j):
+            dn, dtf, el = contact_energy(F, b, 0, u, udot, slip, fn, fel, ft, m_eff, inv_mass_t, dt)
+            if F.mu_r[b, 0] > 0.0:
+                dtf += d_roll
             diss_n, diss_t, stored = dn, dtf, el
             k = partner_slot(F, b, i, j, was_open | seen)
             if k < 0:
@@ -326,7 +337,8 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
             a = nrm * (ri - 0.5 * u)
             vrel = vi + (si - wz).cross(a)
             inv_mass_t = F.inv_m[b, i] + a.norm_sqr() * F.inv_i[b, i]
-            fc, udot, slip, fn, dn, dtf, el = contact_response(F, b, 1, u, nrm, vrel, mi, inv_mass_t, dt)
+            fc, udot, slip, fn, fel, ft = contact_response(F, b, 1, u, nrm, vrel, mi, inv_mass_t, dt)
+            dn, dtf, el = contact_energy(F, b, 1, u, udot, slip, fn, fel, ft, mi, inv_mass_t, dt)
             f += fc
             tq += a.cross(fc)
             p = xi + a

@@ -711,7 +711,7 @@ def trajectory_section(duration: float) -> dict:
               f" wall {verdict['wall']} (wall counts the disk and the machine's other load)")
         print(f"  of which user {ratio['user']:.2f}x ({verdict['user']}): 'sys' is the operating system's, mostly"
               " copying the store's bytes into the page cache (on a fresh VM its pages are first touched then:"
-              " ≈ 2-3 ms per MB)")
+              " ≈ 2-3 ms per MB) and creating the store's ≈ 500 files and folders (docs/performance.md)")
     return dict(rows=rows, ratio=ratio)
 
 

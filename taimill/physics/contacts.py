@@ -1,8 +1,9 @@
 """Neighbour loop: every contact force on one ball, gathered into its own slot (no
 atomics), and the collision events the integrator detects itself
-(docs/model.md, collision events). Ball i visits every ball on its Verlet list (neighbours.py); the pair
-function is antisymmetric to the bit, so both visits of a pair give exactly opposite
-forces and momentum is exact. (A half loop scattering to j was measured 40 % slower.)
+(docs/model.md, collision events). Ball i visits every ball on its Verlet list
+(neighbours.py) that overlaps it, in list order; the pair function is antisymmetric
+to the bit, so both visits of a pair give exactly opposite forces and momentum is
+exact. (A half loop scattering to j was measured 40 % slower.)
 In fused mode (one thread per mill, balls in index order) the owner leaves the
 partner's force and torque in its slot and the partner's visit reads them
 (partner_share): the same numbers without computing the contact twice.

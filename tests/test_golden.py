@@ -23,10 +23,19 @@ import zarr
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 GOLDEN = HERE / "golden" / "runs.json"
-# (preset, overrides): the thesis' steel case and a low-friction case in a jar with corners.
+# (preset, overrides): the thesis' steel case and a low-friction case in a jar with corners,
+# then one short case per other normal law and one with rolling resistance.
 CASES = {
     "cy-steel": ("presets/p4-cy-steel.toml", ["--duration", "1.2", "--seed", "3"]),
     "hm-fluorite": ("presets/p4-hm-fluorite.toml", ["--duration", "1.2", "--seed", "5", "--ratio", "-3.0"]),
+    # one short run per other normal law, and one with rolling resistance on both kinds
+    "cy-steel-kelvin-voigt": ("presets/p4-cy-steel.toml", ["--duration", "0.6", "--seed", "2", "--law", "kelvin-voigt"]),
+    "cy-steel-hertz-damper": ("presets/p4-cy-steel.toml", ["--duration", "0.6", "--seed", "2", "--law", "hertz-damper"]),
+    "hm-fluorite-hunt-crossley": ("presets/p4-hm-fluorite.toml", ["--duration", "0.6", "--seed", "2", "--ratio", "-3.0",
+                                                                  "--law", "hunt-crossley"]),
+    "hm-fluorite-hertz-mindlin": ("presets/p4-hm-fluorite.toml", ["--duration", "0.6", "--seed", "2", "--ratio", "-3.0",
+                                                                  "--law", "hertz-mindlin"]),
+    "hm-rolling": ("tests/golden/hm-rolling.toml", []),
 }
 # Summary entries that measure the machine, not the run.
 TIMING_KEYS = ("wall_seconds", "realtime_factor")

@@ -40,6 +40,8 @@ import numpy as np
 from taimill.bridge.mesh import TOLERANCE, JarMesh, jar_mesh, write_stl
 from taimill.errors import ConfigError
 from taimill.model import laws as laws_np
+from taimill.model.contact.damping import damping_ratio
+from taimill.model.contact.registry import law_by_name
 from taimill.model.params import Preset, load_material, max_impact_speed
 from taimill.model.spec import from_preset
 from taimill.store.run import plain
@@ -86,12 +88,12 @@ def _hertz_input_e(e_target: float) -> float:
     """LIGGGHTS input e for which its clamped Hertz contact (limitForce on) rebounds
     with e_target. The clamped Tsuji law is scale-free, so this is one function of e:
     bisection on simulated unit impacts (k = m = u = 1) over the input e."""
-    mindlin = laws_np.law_by_name("hertz-mindlin")
+    mindlin = law_by_name("hertz-mindlin")
     lo, hi = (0.05 if e_target > 0.22 else 1e-3), 0.999  # input 0.05 gives 0.21 (near e = 0 impacts end slowly)
     for _ in range(5):
         grid = np.linspace(lo, hi, 17)
-        c = [2.0 * math.sqrt(5.0 / 6.0) * laws_np.damping_ratio(e) for e in grid]
-        got = laws_np.simulate_impact(mindlin.id, 1.0, 1.5, c, 1.0, 1.0, 1.0, steps=600)["e"]
+        c = [2.0 * math.sqrt(5.0 / 6.0) * damping_ratio(e) for e in grid]
+        got = laws_np.simulate_impact(mindlin, 1.0, c, 1.0, 1.0, 1.0, steps=600)["e"]
         i = int(np.argmax(got >= e_target)) if (got >= e_target).any() else len(grid) - 1
         lo, hi = grid[max(i - 1, 0)], grid[i]
     return float(0.5 * (lo + hi))
@@ -99,7 +101,7 @@ def _hertz_input_e(e_target: float) -> float:
 
 def _restitution_at(law, speeds) -> np.ndarray:
     """Restitution of a taimill contact at impact speeds (m/s), F ≥ 0 clamp included."""
-    return laws_np.simulate_impact(law.law_id, law.k, law.n, law.c, law.d, law.m_eff, np.asarray(speeds))["e"]
+    return laws_np.simulate_impact(law.model, law.k, law.c, law.d, law.m_eff, np.asarray(speeds))["e"]
 
 
 def contact_mapping(preset: Preset, *, strict: bool = False) -> Mapping:

@@ -6,7 +6,7 @@ Which law, which parameter: the fit applies to the pair's own normal law unless
 another is named. For `adams-impact` (the thesis' MSC.Adams IMPACT law) it fits the
 depth of full damping `d` (default, as the thesis did) or the damping `c_max`; the
 other laws take their damping from a nominal restitution `e` at u_ref (params /
-laws_np.calibrate_damping), so for them `e` is the parameter. A fitted d or e is
+laws.calibrate_damping), so for them `e` is the parameter. A fitted d or e is
 written to both the ball-ball and the ball-wall table (the thesis used the plate's d
 and e for ball-ball impacts too, §2.2.1); a fitted c_max scales both tables' c_max by
 the same factor (keeping eq 2.16's ratio between them).
@@ -32,6 +32,8 @@ from taimill.calibration.optimise import brent
 from taimill.errors import ConfigError
 from taimill.model.params import GRAVITY, NormalLaw, load_material, pair_contact
 from taimill.model import laws as laws_np
+from taimill.model.contact.damping import damping_ratio, smoothstep
+from taimill.model.contact.springs import di_maio_stiffness
 
 GRID = 13
 SPAN = 100.0  #: d and c_max are searched over [start/SPAN, start·SPAN]
@@ -92,7 +94,7 @@ def parameter(name: str | None, law, bb, ball, wall_material: str, data: DropDat
     compenetration" the thesis started from; c_max from eq 2.16 with k* of eq 2.17 and
     the mean measured e, divided by step(u_max/d), the fraction of c_max the IMPACT law
     reaches at that overlap (eq 2.16 assumes full damping); e = the mean measured e."""
-    from_e = law.contact_law.calibrated
+    from_e = law.model.calibrated
     name = name or ("e" if from_e else "d")
     if name not in ("d", "c_max", "e") or (name == "e") != from_e:
         allowed = f"e (law {law.law} takes its damping from e)" if from_e else f"d or c_max ({law.law})"
@@ -107,10 +109,10 @@ def parameter(name: str | None, law, bb, ball, wall_material: str, data: DropDat
     if name == "c_max":
         wall = load_material(wall_material)
         e_eff = 1.0 / (1.0 / ball.material.youngs_modulus + 1.0 / wall.youngs_modulus)  # eq 2.17
-        k_star = laws_np.di_maio_stiffness(law.m_eff, v, e_eff, ball.radius)
-        c_216 = 2.0 * laws_np.damping_ratio(e_mean) * math.sqrt(law.m_eff * k_star)  # eq 2.16, N·s/m
+        k_star = di_maio_stiffness(law.m_eff, v, e_eff, ball.radius)
+        c_216 = 2.0 * damping_ratio(e_mean) * math.sqrt(law.m_eff * k_star)  # eq 2.16, N·s/m
         u_max = ((law.n + 1) * law.m_eff * v * v / (2 * law.k)) ** (1 / (law.n + 1))
-        start = c_216 / float(laws_np.smoothstep(u_max / law.d)) * 1e-3  # the law damps with c_max·step(u/d) ≤ c_max
+        start = c_216 / float(smoothstep(u_max / law.d)) * 1e-3  # the law damps with c_max·step(u/d) ≤ c_max
         return Parameter("c_max", "c_max_Ns_per_mm", "N·s/mm", True, start / SPAN, start * SPAN, start,
                          "eqs 2.15-2.17 over step(u_max/d)", law.c * 1e-3, law, bb.c / law.c if law.c else 1.0)
     e, c = _damping_curve(law)
@@ -121,10 +123,10 @@ def parameter(name: str | None, law, bb, ball, wall_material: str, data: DropDat
 
 def _damping_curve(law: NormalLaw, points=400):
     """(e, c): restitution of head-on impacts at u_ref over a log grid of damping c
-    spanning E_RANGE with margin (RK4, F ≥ 0 clamp, as laws_np.calibrate_damping)."""
-    c_lo, c_hi = (laws_np.closed_form_damping(law.law_id, e, law.k, law.n, law.m_eff, law.u_ref) for e in E_RANGE[::-1])
+    spanning E_RANGE with margin (RK4, F ≥ 0 clamp, as laws.calibrate_damping)."""
+    c_lo, c_hi = (law.model.first_guess(e, law.k, law.m_eff, law.u_ref) for e in E_RANGE[::-1])
     c = np.geomspace(0.3 * c_lo, 3.0 * c_hi, points)
-    e = laws_np.simulate_impact(law.law_id, law.k, law.n, c, law.d, law.m_eff, law.u_ref)["e"]
+    e = laws_np.simulate_impact(law.model, law.k, c, law.d, law.m_eff, law.u_ref)["e"]
     return e[::-1], c[::-1]
 
 

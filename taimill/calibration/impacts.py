@@ -85,7 +85,7 @@ def sensitivity(pair: str, h0: float, *, law: str | None = None, target: str = "
     ball, jar, bb, bw, fr = pair_contact(pair, radius, law)
     base = bw if target == "plate" else bb
     variants = [("reference", 1.0, base)] + [
-        (name, f, vary(base, name, f)) for name in base.contact_law.parameters for f in (1 - change, 1 + change)]
+        (name, f, vary(base, name, f)) for name in base.model.parameters for f in (1 - change, 1 + change)]
     drops = [Drop(ball, jar, bb if target == "plate" else v, v if target == "plate" else bw, fr, h0, target)
              for _, _, v in variants]
     results = run_drops(drops)

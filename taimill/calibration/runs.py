@@ -73,7 +73,7 @@ def resolved_dt(law: NormalLaw, speed: float, steps: int = laws_np.STEPS_PER_CON
     explicit damping is stable below 2 and accurate below ~0.5, and a fit must resolve
     the restitution it reads. Only heavily damped variants (a ±50 % sensitivity, a
     fit's range) meet the bound."""
-    return laws_np.contact_dt(law.law_id, law.k, law.n, law.c, law.d, law.m_eff, [speed], steps, damping_limit=0.5)
+    return laws_np.contact_dt(law.model, law.k, law.c, law.d, law.m_eff, [speed], steps, damping_limit=0.5)
 
 
 # ------------------------------------------------------------------ drop tests

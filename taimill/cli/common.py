@@ -11,7 +11,7 @@ import re
 import sys
 
 from taimill.errors import one_line
-from taimill.model.laws import NAMES
+from taimill.model.contact.registry import NAMES
 from taimill.schema import SUMMARY_ROWS
 
 EXIT_BAD_INPUT, EXIT_UNSTABLE = 2, 3

@@ -22,6 +22,9 @@ from taimill.model.drive import Drive
 from taimill.errors import ConfigError
 from taimill.model.ranges import RANGES
 from taimill.model import laws as laws_np
+from taimill.model.contact.model import NormalModel
+from taimill.model.contact.registry import NAMES as LAW_NAMES, law_by_name
+from taimill.model.contact.springs import hertz_stiffness
 
 PACKAGE = Path(__file__).resolve().parent.parent
 ROOT = PACKAGE.parent
@@ -80,12 +83,9 @@ class NormalLaw:
     u_ref: float  #: m/s
 
     @property
-    def contact_law(self) -> laws_np.ContactLaw:
-        return laws_np.law_by_name(self.law)
-
-    @property
-    def law_id(self) -> int:
-        return self.contact_law.id
+    def model(self) -> NormalModel:
+        """The law's composition of a spring and a damping (taimill.model.contact)."""
+        return law_by_name(self.law)
 
 
 @dataclass(frozen=True)
@@ -457,7 +457,7 @@ def _normal_law(t: _Table, law: str, k, m_eff, e_eff, r_eff) -> tuple:
     e = t.get("e", lo=0, lo_open=True, hi=1)
     u_ref = t.get("u_ref_mm_s", lo=0, lo_open=True, hi=1e6) * 1e-3
     t.done()
-    cl = laws_np.law_by_name(law)
+    cl = law_by_name(law)
     if cl.calibrated and not e < 1.0:
         raise ConfigError(t.source, t.key("e"), e, f"law {law} needs a restitution in (0, 1)")
     k = cl.stiffness(k, m_eff, u_ref, e_eff, r_eff)
@@ -467,9 +467,10 @@ def _normal_law(t: _Table, law: str, k, m_eff, e_eff, r_eff) -> tuple:
 def _normal_laws(law: str, *contacts) -> tuple:
     """NormalLaws of contact types read by _normal_law, their dampings calibrated in one
     batch (laws.calibrate_dampings: half the set-up time of one at a time)."""
-    laws_np.calibrate_dampings([(cl.id, e, k, cl.n, m_eff, u_ref, d)
+    laws_np.calibrate_dampings([(cl, e, k, m_eff, u_ref, d)
                                 for cl, (_, e, k, m_eff, u_ref, d) in contacts if cl.calibrated])
-    return tuple(NormalLaw(law, k, cl.n, cl.damping(c_max, e, k, m_eff, u_ref, d), d, m_eff, e, u_ref)
+    return tuple(NormalLaw(law, k, cl.n, laws_np.calibrate_damping(cl, e, k, m_eff, u_ref, d) if cl.calibrated else c_max,
+                           d, m_eff, e, u_ref)
                  for cl, (c_max, e, k, m_eff, u_ref, d) in contacts)
 
 
@@ -489,7 +490,7 @@ def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source,
     ball_mat = t.get("ball", kind=str)
     wall_mat = t.get("wall", kind=str)
     t.get("ball_radius_mm", lo=0, lo_open=True, hi=1000)
-    law = law or t.get("law", kind=str, allowed=laws_np.NAMES)
+    law = law or t.get("law", kind=str, allowed=LAW_NAMES)
     t.used.add("law")
     if ball_mat != balls.material.name:
         raise ConfigError(source, "balls.material", balls.material.name, f"the pair's contact set '{contact}' is for {ball_mat} balls")
@@ -497,8 +498,8 @@ def _contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source,
         raise ConfigError(source, "jar", jar.name, f"wall material {jar.wall_material}; the pair's contact set '{contact}' is for {wall_mat} walls")
     bm, wm = balls.material, load_material(wall_mat, file)
     r, m = balls.radius, balls.mass
-    k_bb = laws_np.hertz_stiffness(bm.youngs_modulus, bm.poisson, bm.youngs_modulus, bm.poisson, r, r)
-    k_bw = laws_np.hertz_stiffness(bm.youngs_modulus, bm.poisson, wm.youngs_modulus, wm.poisson, r)
+    k_bb = hertz_stiffness(bm.youngs_modulus, bm.poisson, bm.youngs_modulus, bm.poisson, r, r)
+    k_bw = hertz_stiffness(bm.youngs_modulus, bm.poisson, wm.youngs_modulus, wm.poisson, r)
     e_bb = 1.0 / (2.0 / bm.youngs_modulus)  # eq 2.17: 1/E_e = 1/E_i + 1/E_j
     e_bw = 1.0 / (1.0 / bm.youngs_modulus + 1.0 / wm.youngs_modulus)
     bb, bw = _normal_laws(law, _normal_law(t.table("ball_ball", known=NORMAL_LAW_KEYS), law, k_bb, m / 2.0, e_bb, r / 2.0),
@@ -519,8 +520,8 @@ def pair_contact(pair: str, radius: float | None = None, law: str | None = None,
     radius = radius or t.get("ball_radius_mm", lo=0, lo_open=True, hi=1000) * 1e-3
     ball = Balls(1, load_material(t.get("ball", kind=str), file), radius)
     jar = Jar("plate", "drop test", 10.0, t.get("wall", kind=str), (("circle", {"radius": 1.0}),))  # a 2 m wide plate
-    if law is not None and law not in laws_np.NAMES:
-        raise ConfigError(source, "law", law, f"must be one of {', '.join(laws_np.NAMES)}")
+    if law is not None and law not in LAW_NAMES:
+        raise ConfigError(source, "law", law, f"must be one of {', '.join(LAW_NAMES)}")
     bb, bw = _contact_laws(contact_id, law, ball, jar, source, contact)
     return ball, jar, bb, bw, friction
 
@@ -579,7 +580,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
         ft.done()
     frictions = [_kind_friction(t, kind, friction, contact, path, pair_base) for kind in KINDS]
     friction, wall_friction = frictions[0], (frictions[1] if frictions[1] != frictions[0] else None)
-    law = t.get("law", None, allowed=laws_np.NAMES)
+    law = t.get("law", None, allowed=LAW_NAMES)
     ball_ball, ball_wall = _contact_laws(contact, law, balls, jar, source)
 
     plate_rpm = t.get("plate_rpm", **RANGES["plate_rpm"].bounds)

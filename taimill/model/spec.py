@@ -9,6 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from taimill.model.contact.model import ContactModel
+from taimill.model.contact.registry import contact_model
 from taimill.model.frame import Ramp
 from taimill.model.geometry import Profile
 from taimill.model.mechanisms import IMPACT_AGE, STRESS_MIN_UN
@@ -43,6 +45,11 @@ class MillSpec:
     def frictions(self) -> tuple[Friction, Friction]:
         """(ball-ball, ball-wall) friction, in contact-type order."""
         return self.friction, self.wall_friction or self.friction
+
+    @property
+    def contact_models(self) -> tuple[ContactModel, ContactModel]:
+        """(ball-ball, ball-wall) compositions of sub-models the kernels must hold."""
+        return tuple(contact_model(law.law) for law in (self.ball_ball, self.ball_wall))
 
     @property
     def n(self):

@@ -28,23 +28,68 @@ import taichi as ti
 
 from taimill.physics import state as S
 from taimill.physics.frame import wall_velocity_ground
-from taimill.physics.laws import elastic_energy, friction_force, normal_force, rolling_torque
+from taimill.physics.laws import ROLLING, TANGENTIAL, elastic_energy, normal_force
 from taimill.physics.walls import wall_near
+
+
+@ti.func
+def respond(model: ti.template(), F: ti.template(), b, ct: ti.template(), u, udot, slip, m_eff, inv_mass_t, dt):
+    """(F_n, elastic F_n, friction force) of the ContactModel `model` (compiled in)."""
+    fn, fel = normal_force(model.normal, u, udot, F.law_k[b, ct], F.law_c[b, ct], F.law_d[b, ct], m_eff)
+    ft = TANGENTIAL[model.tangential.name](slip, fn, F.mu_s[b, ct], F.mu_d[b, ct], F.v_s[b, ct],
+                                                      F.v_d[b, ct], inv_mass_t, dt)
+    return fn, fel, ft
 
 
 @ti.func
 def contact_response(F: ti.template(), b, ct: ti.template(), u, nrm, vrel, m_eff, inv_mass_t, dt):
     """Force on the first body at a contact of type ct (0 ball-ball, 1 ball-wall) with
     overlap u, unit normal nrm (first body → second), relative contact-point velocity
-    vrel. Returns (force, u̇, slip, F_n, elastic F_n, friction force). Rolling
-    resistance (if on) is added by the caller, who knows the spins; its work is booked
-    with the friction work (the shear part of the contact's dissipation)."""
+    vrel. Returns (force, u̇, slip, F_n, elastic F_n, friction force). The contact model
+    is the engine's only one for ct (F.models[ct], compiled in), or, when a batch mixes
+    models, the one F.variant[b, ct] picks among them. Rolling resistance (if on) is
+    added by the caller, who knows the spins; its work is booked with the friction work
+    (the shear part of the contact's dissipation)."""
     udot = vrel.dot(nrm)
     slip = vrel - udot * nrm
-    k, n = F.law_k[b, ct], F.law_n[b, ct]
-    fn, fel = normal_force(F.law[b, ct], u, udot, k, n, F.law_c[b, ct], F.law_d[b, ct], m_eff)
-    ft = friction_force(slip, fn, F.mu_s[b, ct], F.mu_d[b, ct], F.v_s[b, ct], F.v_d[b, ct], inv_mass_t, dt)
+    fn, fel = 0.0, 0.0
+    ft = ti.Vector([0.0, 0.0, 0.0])
+    if ti.static(len(F.models[ct]) == 1):
+        fn, fel, ft = respond(F.models[ct][0], F, b, ct, u, udot, slip, m_eff, inv_mass_t, dt)
+    else:
+        for v in ti.static(range(len(F.models[ct]))):
+            if F.variant[b, ct] == v:
+                fn, fel, ft = respond(F.models[ct][v], F, b, ct, u, udot, slip, m_eff, inv_mass_t, dt)
     return -fn * nrm + ft, udot, slip, fn, fel, ft
+
+
+@ti.func
+def stored_energy(F: ti.template(), b, ct: ti.template(), u, fel):
+    """Energy (J) in the spring of a contact of type ct with overlap u, elastic force fel."""
+    el = 0.0
+    if ti.static(len(F.models[ct]) == 1):
+        el = elastic_energy(u, fel, ti.static(F.models[ct][0].normal.n))
+    else:
+        for v in ti.static(range(len(F.models[ct]))):
+            if F.variant[b, ct] == v:
+                el = elastic_energy(u, fel, ti.static(F.models[ct][v].normal.n))
+    return el
+
+
+@ti.func
+def rolling_response(F: ti.template(), b, ct: ti.template(), spin_rel, nrm, fn, r_eff, inv_inertia, dt):
+    """(torque on the first body, energy dissipated over the step) of the rolling model
+    of contact type ct; the caller calls it only while F.mu_r[b, ct] > 0."""
+    tq = ti.Vector([0.0, 0.0, 0.0])
+    d = 0.0
+    if ti.static(len(F.models[ct]) == 1):
+        tq, d = ROLLING[F.models[ct][0].rolling.name](spin_rel, nrm, fn, F.mu_r[b, ct], r_eff, inv_inertia, dt)
+    else:
+        for v in ti.static(range(len(F.models[ct]))):
+            if F.variant[b, ct] == v:
+                tq, d = ROLLING[F.models[ct][v].rolling.name](spin_rel, nrm, fn, F.mu_r[b, ct], r_eff,
+                                                                          inv_inertia, dt)
+    return tq, d
 
 
 @ti.func
@@ -58,7 +103,7 @@ def contact_energy(F: ti.template(), b, ct: ti.template(), u, udot, slip, fn, fe
     udot_mid = udot - 0.5 * fn * dt / m_eff
     dn = (fn - fel) * udot_mid * dt
     dtf = (-ft.dot(slip) - 0.5 * ft.norm_sqr() * inv_mass_t * dt) * dt
-    return dn, dtf, elastic_energy(u, fel, F.law_n[b, ct])
+    return dn, dtf, stored_energy(F, b, ct, u, fel)
 
 
 @ti.func
@@ -292,8 +337,8 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
         m_roll = ti.Vector([0.0, 0.0, 0.0])  # rolling-resistance torque on i; on j it is -m_roll to the bit
         d_roll = 0.0
         if F.mu_r[b, 0] > 0.0:  # off: not computed, runs without it stay bit-identical
-            m_roll, d_roll = rolling_torque(F.s[b, i] - F.s[b, j], nrm, fn, F.mu_r[b, 0], ri * rj / (ri + rj),
-                                            F.inv_i[b, i] + F.inv_i[b, j], dt)
+            m_roll, d_roll = rolling_response(F, b, 0, F.s[b, i] - F.s[b, j], nrm, fn, ri * rj / (ri + rj),
+                                              F.inv_i[b, i] + F.inv_i[b, j], dt)
             tq += m_roll
         if S.owns(F, b, i, j):
             dn, dtf, el = contact_energy(F, b, 0, u, udot, slip, fn, fel, ft, m_eff, inv_mass_t, dt)
@@ -345,7 +390,7 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
             p = xi + a
             drive += fc.dot(wall_velocity_ground(p, dr, F.plate_radius[b])) * dt
             if F.mu_r[b, 1] > 0.0:  # the wall turns with the jar: its torque's power w ẑ·M is drive work
-                mr, d_roll = rolling_torque(si - wz, nrm, fn, F.mu_r[b, 1], ri, F.inv_i[b, i], dt)
+                mr, d_roll = rolling_response(F, b, 1, si - wz, nrm, fn, ri, F.inv_i[b, i], dt)
                 tq += mr
                 dtf += d_roll
                 drive += mr.dot(wz) * dt

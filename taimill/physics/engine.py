@@ -246,6 +246,8 @@ class Engine:
     open-contact pool (default state.pool_rows; tests force a small one). `reorder`:
     keep the ball rows in grid order (reorder.py; parallel mode only, its default);
     read balls through `ball_rows` and `neighbour_lists`, which give own indices.
+    `models`: per contact type the ContactModels the kernels are compiled for
+    (state.Fields; default the thesis' model).
     """
 
     BALL_PAD = 8  # f64 × 8 = 64 B
@@ -255,7 +257,7 @@ class Engine:
     LARGE_EVENT_BYTES = 32 << 20  # events buffered in parallel mode, half of them the per-step margin
 
     def __init__(self, batch, balls, *, mode="fused", use_grid=True, grid_cells=1, frame_capacity=256, pool=None,
-                 reorder=None):
+                 reorder=None, models=None):
         if mode == "parallel" and batch != 1:
             raise ValueError("parallel mode runs one mill")
         reorder = mode == "parallel" if reorder is None else reorder
@@ -271,7 +273,8 @@ class Engine:
             events = max(self.EVENT_ROWS, min(events, self.LARGE_EVENT_BYTES // (8 * S.NCOL)))
             self.margin = min(self.margin, events // 2)
             frames = int(max(1, min(frame_capacity, self.LARGE_FRAME_BYTES // (72 * n))))
-        self.F = S.Fields(batch, n, events, frames, grid_cells, pool, share_pairs=mode == "fused", reorder=reorder)
+        self.F = S.Fields(batch, n, events, frames, grid_cells, pool, share_pairs=mode == "fused", reorder=reorder,
+                          models=models)
         self._spare: dict[int, list[np.ndarray]] = {}  # drain's frame arrays per mill (_frame_arrays)
 
     @property

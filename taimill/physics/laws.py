@@ -1,11 +1,10 @@
-"""Contact laws as Taichi functions: pure functions of local quantities. Their NumPy
-twins, the law table, the registry and the sources are in `taimill.model.laws`; the
-tests hold the two equal. Each registered law has its damping shape g here, in SHAPES
-under its name; `damping_shape` dispatches on the law id over the registry."""
+"""Contact sub-models as Taichi functions: pure functions of local quantities, each
+the twin of the NumPy sub-model of the same name in `taimill.model.contact` (the tests
+hold the two equal), registered here by name in one table per kind. `normal_force`
+and the kernels take the sub-models as compile-time (template) arguments: a run's
+kernels contain only the sub-models it uses, with no test of a model in the loop."""
 
 import taichi as ti
-
-from taimill.model.laws import REGISTRY
 
 
 @ti.func
@@ -15,75 +14,67 @@ def smoothstep(s):
     return s * s * (3.0 - 2.0 * s)
 
 
+# ------------------------------------------------------------------ springs: uⁿ
 @ti.func
-def power(u, n):
-    """uⁿ for u ≥ 0; the Hertz exponent 3/2 through a square root (5× cheaper than pow)."""
-    p = u
-    if n == 1.5:
-        p = u * ti.sqrt(u)
-    elif n != 1.0:
-        p = ti.pow(u, n)
-    return p
+def hertz_power(u):
+    """u^(3/2) through a square root (5× cheaper than pow)."""
+    return u * ti.sqrt(u)
 
 
 @ti.func
-def step_shape(u, un, k, n, d, m_eff):
-    """adams-impact: step(u/d), eqs 2.20 / 3.2."""
+def linear_power(u):
+    return u
+
+
+SPRINGS = {"hertz": hertz_power, "linear": linear_power}
+
+
+# ------------------------------------------------------------------ damping shapes g(u)
+@ti.func
+def step_shape(u, un, k, n: ti.template(), d, m_eff):
+    """adams-step: step(u/d), eqs 2.20 / 3.2."""
     return smoothstep(u / d)
 
 
 @ti.func
-def unit_shape(u, un, k, n, d, m_eff):
-    """kelvin-voigt, hertz-damper: 1 (eqs 2.13, 2.18)."""
+def unit_shape(u, un, k, n: ti.template(), d, m_eff):
+    """viscous: 1 (eqs 2.13, 2.18)."""
     return 1.0
 
 
 @ti.func
-def hunt_crossley_shape(u, un, k, n, d, m_eff):
+def hunt_crossley_shape(u, un, k, n: ti.template(), d, m_eff):
     """hunt-crossley: k uⁿ, eq 2.19."""
     return k * un
 
 
 @ti.func
-def mindlin_shape(u, un, k, n, d, m_eff):
-    """hertz-mindlin: √(m_e S_n), S_n = n k u^(n-1) (Tsuji 1992)."""
+def tsuji_shape(u, un, k, n: ti.template(), d, m_eff):
+    """tsuji: √(m_e S_n), S_n = n k u^(n-1) (Tsuji 1992)."""
     return ti.sqrt(m_eff * n * k * un / u)
 
 
-SHAPES = {
-    "adams-impact": step_shape,
-    "kelvin-voigt": unit_shape,
-    "hertz-damper": unit_shape,
-    "hunt-crossley": hunt_crossley_shape,
-    "hertz-mindlin": mindlin_shape,
-}
+DAMPINGS = {"adams-step": step_shape, "viscous": unit_shape, "hunt-crossley": hunt_crossley_shape,
+            "tsuji": tsuji_shape}
 
 
 @ti.func
-def damping_shape(law: ti.i32, u, un, k, n, d, m_eff):
-    """g(u) of the registered law with id `law`; un = uⁿ."""
-    g = 1.0
-    for i in ti.static(range(len(REGISTRY))):
-        if law == REGISTRY[i].id:
-            g = SHAPES[REGISTRY[i].name](u, un, k, n, d, m_eff)
-    return g
-
-
-@ti.func
-def normal_force(law: ti.i32, u, udot, k, n, c, d, m_eff):
-    """(F, F_elastic), N: F = max(0, k uⁿ + c g(u) u̇), never attractive. u > 0."""
-    un = power(u, n)
+def normal_force(law: ti.template(), u, udot, k, c, d, m_eff):
+    """(F, F_elastic), N, of the NormalModel `law`: F = max(0, k uⁿ + c g(u) u̇), never
+    attractive. u > 0."""
+    un = SPRINGS[law.spring.name](u)
     f_el = k * un
-    f = ti.max(0.0, f_el + c * damping_shape(law, u, un, k, n, d, m_eff) * udot)
-    return f, f_el
+    g = DAMPINGS[law.damping.name](u, un, k, ti.static(law.n), d, m_eff)
+    return ti.max(0.0, f_el + c * g * udot), f_el
 
 
 @ti.func
-def elastic_energy(u, f_el, n):
+def elastic_energy(u, f_el, n: ti.template()):
     """k u^(n+1)/(n+1) = F_el u/(n+1), J."""
     return f_el * u / (n + 1.0)
 
 
+# ------------------------------------------------------------------ tangential
 @ti.func
 def friction_coefficient(v, mu_s, mu_d, v_s, v_d):
     """Regularised Coulomb μ(v), thesis eq 3.7. (The reciprocals of the constants are
@@ -98,9 +89,10 @@ def friction_coefficient(v, mu_s, mu_d, v_s, v_d):
 
 @ti.func
 def friction_force(slip, f_n, mu_s, mu_d, v_s, v_d, inv_mass_t, dt):
-    """Friction force opposing `slip`; its impulse in one step never exceeds the one
-    that stops the slip (inv_mass_t = Σ 1/m + a²/I of both bodies). Computed as
-    -min(μ F_n / v, 1 / (dt inv_mass_t)) slip: one division by v, in parallel with μ(v)."""
+    """regularised-coulomb: friction force opposing `slip`; its impulse in one step never
+    exceeds the one that stops the slip (inv_mass_t = Σ 1/m + a²/I of both bodies).
+    Computed as -min(μ F_n / v, 1 / (dt inv_mass_t)) slip: one division by v, in
+    parallel with μ(v)."""
     vs = slip.norm()
     f = ti.Vector([0.0, 0.0, 0.0])
     if vs > 0.0:
@@ -109,9 +101,13 @@ def friction_force(slip, f_n, mu_s, mu_d, v_s, v_d, inv_mass_t, dt):
     return f
 
 
+TANGENTIAL = {"regularised-coulomb": friction_force}
+
+
+# ------------------------------------------------------------------ rolling resistance
 @ti.func
 def rolling_torque(spin_rel, nrm, f_n, mu_r, r_eff, inv_inertia, dt):
-    """Constant directional rolling-resistance torque on the first body, μ_r R_eff F_n
+    """constant-torque: rolling-resistance torque on the first body, μ_r R_eff F_n
     against ω_r = spin_rel without its twist about nrm; its angular impulse in one step
     never exceeds the one that stops ω_r (inv_inertia = Σ 1/I of both bodies). Returns
     (torque, energy it dissipates over the step at mid-step ω_r)."""
@@ -122,3 +118,6 @@ def rolling_torque(spin_rel, nrm, f_n, mu_r, r_eff, inv_inertia, dt):
         mag = ti.min(mu_r * r_eff * f_n, wn / (dt * inv_inertia))
         tq = -mag / wn * w_r
     return tq, (-tq.dot(w_r) - 0.5 * tq.norm_sqr() * inv_inertia * dt) * dt
+
+
+ROLLING = {"constant-torque": rolling_torque}

@@ -15,6 +15,9 @@ def write_mill(F, b: int, spec: MillSpec):
     if n > F.N:
         raise ValueError(f"mill has {n} balls, fields hold {F.N}")
     pieces = spec.profile.pieces
+    missing = [m.name for ct, m in enumerate(spec.contact_models) if m not in F.models[ct]]
+    if missing:
+        raise ValueError(f"the engine's kernels are not compiled for the contact model {missing[0]}")
     if len(pieces) > S.MAX_PIECES:
         raise ValueError(f"at most {S.MAX_PIECES} profile pieces, the jar has {len(pieces)}")
     F.n_balls[b] = n
@@ -31,10 +34,9 @@ def write_mill(F, b: int, spec: MillSpec):
     F.target[b] = spec.steps
     F.stress_un[b] = spec.stress_min_un
     F.impact_age[b] = spec.impact_age
-    for ct, law in enumerate((spec.ball_ball, spec.ball_wall)):
-        F.law[b, ct] = law.law_id
+    for ct, (law, model) in enumerate(zip((spec.ball_ball, spec.ball_wall), spec.contact_models)):
+        F.variant[b, ct] = F.models[ct].index(model)
         F.law_k[b, ct] = law.k
-        F.law_n[b, ct] = law.n
         F.law_c[b, ct] = law.c
         F.law_d[b, ct] = law.d
     for ct, fr in enumerate(spec.frictions):

@@ -48,20 +48,27 @@ FRAME_CAPACITY = (256, 32768)
 _engines: dict = {}
 
 
-def _engine(batch, balls, mode, use_grid, cells, frames=FRAME_CAPACITY[0], pool=None, reorder=None) -> Engine:
+def _engine(batch, balls, mode, use_grid, cells, frames=FRAME_CAPACITY[0], pool=None, reorder=None,
+            models=None) -> Engine:
     """Engines are reused within a process: new fields mean new kernel instances, and
     compiling those costs ≈ 1.3 s each. Ball counts with the same padded row length
     (Engine.BALL_PAD) share one engine: its fields are identical; so do frame
-    capacities up to one of an engine already made."""
+    capacities up to one of an engine already made. The contact models (per contact
+    type, compiled into the kernels) must be the same."""
     balls = -(-balls // Engine.BALL_PAD) * Engine.BALL_PAD
     frames = frames if mode == "fused" else 8
-    for (b, n, m, g, c, p, r, f), engine in _engines.items():
-        if (b, n, m, g, c, p, r) == (batch, balls, mode, use_grid, cells, pool, reorder) and f >= frames:
+    for (b, n, m, g, c, p, r, mo, f), engine in _engines.items():
+        if (b, n, m, g, c, p, r, mo) == (batch, balls, mode, use_grid, cells, pool, reorder, models) and f >= frames:
             return engine
-    key = (batch, balls, mode, use_grid, cells, pool, reorder, frames)
+    key = (batch, balls, mode, use_grid, cells, pool, reorder, models, frames)
     _engines[key] = Engine(batch, balls, mode=mode, use_grid=use_grid, grid_cells=cells, frame_capacity=frames,
-                           pool=pool, reorder=reorder)
+                           pool=pool, reorder=reorder, models=models)
     return _engines[key]
+
+
+def models_of(specs: list[MillSpec]) -> tuple:
+    """Per contact type, the distinct ContactModels of a batch in first-use order."""
+    return tuple(tuple(dict.fromkeys(s.contact_models[ct] for s in specs)) for ct in range(S.CONTACT_TYPES))
 
 
 def frame_capacity(specs: list[MillSpec]) -> int:
@@ -207,7 +214,8 @@ class Runner:
         use_grid = n > ALL_PAIRS_UP_TO if use_grid is None else use_grid
         mode = mode or ("parallel" if len(specs) == 1 and n > PARALLEL_ABOVE else "fused")
         cells = 1 << max(grid_cells_for(s) for s in specs).bit_length()
-        self.engine = _engine(len(specs), n, mode, use_grid, cells, frame_capacity(specs), pool, reorder)
+        self.engine = _engine(len(specs), n, mode, use_grid, cells, frame_capacity(specs), pool, reorder,
+                              models_of(specs))
         every = min(s.frame_every for s in specs)
         # a launch of `room` steps from a frame step takes exactly frame_capacity frames
         # (engine.can_step): a power of two, so that a dense trajectory's chunks (at most

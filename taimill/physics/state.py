@@ -7,6 +7,7 @@ kept apart from State (evolving). Shapes in brackets, SI units.
 
 import taichi as ti
 
+from taimill.model.contact.registry import contact_model
 from taimill.model.geometry import PIECE_COLUMNS
 from taimill.schema import DERIVED_EVENT_COLUMNS, DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS, MECHANISM_COLUMNS
 
@@ -68,13 +69,24 @@ OK, NONFINITE, ESCAPED, SLOTS_FULL, LIST_FULL, POOL_FULL = 0, 1, 2, 3, 4, 5
 
 MAX_PIECES = 32  # boundary pieces of a jar profile (T: 12)
 CONTACT_TYPES = 2  # 0 ball-ball, 1 ball-wall
+LAWS_DEFAULT = "adams-impact"
+
+
+def default_models() -> tuple:
+    """The thesis' contact model for both contact types (adams-impact, regularised
+    Coulomb friction, constant rolling torque)."""
+    one = (contact_model(LAWS_DEFAULT),)
+    return one, one
 
 
 @ti.data_oriented
 class Fields:
     def __init__(self, batch: int, balls: int, event_capacity: int, frame_capacity: int, grid_cells: int,
-                 pool: int | None = None, share_pairs: bool = False, reorder: bool = False):
+                 pool: int | None = None, share_pairs: bool = False, reorder: bool = False, models=None):
         B, N = batch, balls
+        # the ContactModels the kernels are compiled for, per contact type (ball-ball,
+        # ball-wall): compile-time constants of every kernel that takes these fields
+        self.models = tuple(tuple(m) for m in (models or default_models()))
         if reorder and (B != 1 or share_pairs):
             raise ValueError("balls are stored in grid order only in parallel mode (one mill)")
         P = pool_rows(N) if pool is None else pool
@@ -111,12 +123,13 @@ class Fields:
         # class of a contact for the mechanism ledger (taimill.model.mechanisms) [B]
         self.stress_un = ti.field(f64, B)  #: m/s, least onset normal speed of an impact
         self.impact_age = ti.field(f64, B)  #: s, an impact older than this is persistent
-        # normal law per contact type [B, 2]: 0 ball-ball, 1 ball-wall
-        self.law = ti.field(i32, (B, CONTACT_TYPES))
-        self.law_k = ti.field(f64, (B, CONTACT_TYPES))  #: N/m^n
-        self.law_n = ti.field(f64, (B, CONTACT_TYPES))
-        self.law_c = ti.field(f64, (B, CONTACT_TYPES))
-        self.law_d = ti.field(f64, (B, CONTACT_TYPES))  #: m
+        # contact model per contact type [B, 2] (0 ball-ball, 1 ball-wall): one of the
+        # engine's compiled models (self.models[ct], variant only if it has several)
+        # and the normal law's coefficients
+        self.variant = ti.field(i32, (B, CONTACT_TYPES))  #: index into self.models[ct]
+        self.law_k = ti.field(f64, (B, CONTACT_TYPES))  #: stiffness, N/m^n
+        self.law_c = ti.field(f64, (B, CONTACT_TYPES))  #: damping coefficient, unit of the damping model
+        self.law_d = ti.field(f64, (B, CONTACT_TYPES))  #: m, full-damping overlap (adams-step)
         # friction (eq 3.7) and rolling resistance per contact type, live-tunable [B, 2]
         self.mu_s = ti.field(f64, (B, CONTACT_TYPES))
         self.mu_d = ti.field(f64, (B, CONTACT_TYPES))

@@ -1,0 +1,50 @@
+"""The sub-models by kind and name, and the named normal laws (compositions).
+
+| law            | spring | damping g(u)             | source                        |
+|----------------|--------|--------------------------|-------------------------------|
+| adams-impact   | hertz  | adams-step: step(u/d)    | MSC.Adams IMPACT, eqs 2.20/3.2 |
+| kelvin-voigt   | linear | viscous: 1               | eq 2.13, k* of eq 2.17        |
+| hertz-damper   | hertz  | viscous: 1               | eq 2.18 (Dubowsky)            |
+| hunt-crossley  | hertz  | hunt-crossley: k uⁿ      | eq 2.19, Hunt & Crossley 1975 |
+| hertz-mindlin  | hertz  | tsuji: √(m_e n k u^(n-1)) | Tsuji 1992 / EDEM: constant e |
+
+A new sub-model is its own module (NumPy here, its Taichi twin under the same name in
+`taimill.physics.submodels`) and one line in its kind's registry below.
+"""
+
+from __future__ import annotations
+
+from taimill.model.contact import damping, rolling, springs, tangential
+from taimill.model.contact.model import ContactModel, NormalModel
+
+
+def _by_name(*models) -> dict:
+    return {m.name: m for m in models}
+
+
+SPRINGS = _by_name(springs.HERTZ, springs.LINEAR)
+DAMPINGS = _by_name(damping.STEP, damping.VISCOUS, damping.HUNT_CROSSLEY, damping.TSUJI)
+TANGENTIAL = _by_name(tangential.REGULARISED_COULOMB)
+ROLLING = _by_name(rolling.CONSTANT_TORQUE)
+
+LAWS = _by_name(
+    NormalModel("adams-impact", springs.HERTZ, damping.STEP),
+    NormalModel("kelvin-voigt", springs.LINEAR, damping.VISCOUS, constant_e=True),
+    NormalModel("hertz-damper", springs.HERTZ, damping.VISCOUS),
+    NormalModel("hunt-crossley", springs.HERTZ, damping.HUNT_CROSSLEY),
+    NormalModel("hertz-mindlin", springs.HERTZ, damping.TSUJI, constant_e=True),
+)
+NAMES = tuple(LAWS)  #: the normal laws' names, as users type them
+CONSTANT_E_LAWS = tuple(name for name, law in LAWS.items() if law.constant_e)
+DEFAULT_TANGENTIAL = tangential.REGULARISED_COULOMB.name
+DEFAULT_ROLLING = rolling.CONSTANT_TORQUE.name
+
+
+def law_by_name(name: str) -> NormalModel:
+    """The normal law called `name` (one of NAMES)."""
+    return LAWS[name]
+
+
+def contact_model(law: str, tangential_name: str = DEFAULT_TANGENTIAL, rolling_name: str = DEFAULT_ROLLING) -> ContactModel:
+    """The composition a contact type runs with."""
+    return ContactModel(LAWS[law], TANGENTIAL[tangential_name], ROLLING[rolling_name])

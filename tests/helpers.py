@@ -21,7 +21,7 @@ def elastic(law: NormalLaw) -> NormalLaw:
 
 
 def dt_for(law: NormalLaw, v: float, steps_per_contact: int) -> float:
-    t_c = laws_np.simulate_impact(law.law_id, law.k, law.n, law.c, law.d, law.m_eff, v)["duration"][0]
+    t_c = laws_np.simulate_impact(law.model, law.k, law.c, law.d, law.m_eff, v)["duration"][0]
     return float(t_c / steps_per_contact)
 
 

@@ -297,7 +297,7 @@ def test_oblique_adams_law_normal_from_head_on_e_and_thesis_formula_off(tmp_path
     _, _, bb, _, _ = pair_contact("steel-steel")
     for r in o["rows"][:-1]:
         # the head-on e is the law's e at u̇_n (RK4 twin; 5e-3: the engine's dt resolution)
-        e_rk4 = laws_np.simulate_impact(bb.law_id, bb.k, bb.n, bb.c, bb.d, bb.m_eff, r["un"])["e"][0]
+        e_rk4 = laws_np.simulate_impact(bb.model, bb.k, bb.c, bb.d, bb.m_eff, r["un"])["e"][0]
         assert r["e_head_on"] == pytest.approx(e_rk4, abs=5e-3)
         assert r["un_final"] == pytest.approx(-r["e_head_on"] * r["un"], rel=0.02)
         if r["offset_mm"]:

@@ -201,7 +201,7 @@ def test_pair_files_are_accepted_or_refused(stubs, where, case):
         if isinstance(law, dict):
             law.pop(key, None) if op == "delete" else law.__setitem__(key, v)
     if isinstance(contact, dict) and contact.get("law") not in ("adams-impact", None) and isinstance(contact.get("law"), str):
-        from taimill.model.laws import NAMES
+        from taimill.model.contact.registry import NAMES
 
         if contact["law"] in NAMES:  # a calibrated law: see the module doc
             contact["law"] = "adams-impact"

@@ -9,6 +9,7 @@ import pytest
 from helpers import FRICTIONLESS, dt_for, elastic, steel, two_ball_impact
 from taimill.model.params import Friction, NormalLaw, pair_contact
 from taimill.model import laws as laws_np
+from taimill.model.contact.registry import CONSTANT_E_LAWS
 from taimill.calibration.runs import drop_test, impact_spec, run_spec
 
 G = 9.81
@@ -43,7 +44,7 @@ def test_engine_restitution_equals_the_law_integrated_finely():
     _, _, bb, bw, _ = steel()
     for h0 in (0.05, 0.5, 2.0):
         v = math.sqrt(2 * G * h0)
-        ref = laws_np.simulate_impact(bw.law_id, bw.k, bw.n, bw.c, bw.d, bw.m_eff, v)["e"][0]
+        ref = laws_np.simulate_impact(bw.model, bw.k, bw.c, bw.d, bw.m_eff, v)["e"][0]
         assert drop_test("steel-steel", h0)["e"] == pytest.approx(ref, abs=5e-3)
 
 
@@ -54,13 +55,13 @@ def test_drop_test_converges_in_dt():
     assert abs(auto["e"] - half["e"]) < 3e-3
 
 
-@pytest.mark.parametrize("law", laws_np.CONSTANT_E_LAWS)
+@pytest.mark.parametrize("law", CONSTANT_E_LAWS)
 def test_constant_restitution_laws_deliver_e_in_the_engine(law):
     # Chung & Ooi case 2 (normal impact with a plane at several restitutions), on the
     # engine: measured e within 0.01 of nominal (dt-resolution of the clamp's release).
     for e in (0.3, 0.6, 0.9):
         ball, jar, bb, bw, fr = pair_contact("steel-steel", law=law)
-        c = laws_np.calibrate_damping(bw.law_id, e, bw.k, bw.n, bw.m_eff, bw.u_ref, bw.d)
+        c = laws_np.calibrate_damping(bw.model, e, bw.k, bw.m_eff, bw.u_ref, bw.d)
         law_e = NormalLaw(bw.law, bw.k, bw.n, c, bw.d, bw.m_eff, e, bw.u_ref)
         v = 2.0
         dt = dt_for(law_e, v, 80)
@@ -109,7 +110,7 @@ def test_frictionless_two_spheres_thesis_fig_2_8(offset_mm):
     assert ev["un"][0] == pytest.approx(un, rel=2e-3)  # onset normal speed is recorded
     theta = abs(v_in @ t) * ev["duration"][0] / (2 * ball.radius)
     assert v_out @ t == pytest.approx(v_in @ t, abs=theta * 2 * un + 1e-12)
-    e = laws_np.simulate_impact(bb.law_id, bb.k, bb.n, bb.c, bb.d, bb.m_eff, un)["e"][0]
+    e = laws_np.simulate_impact(bb.model, bb.k, bb.c, bb.d, bb.m_eff, un)["e"][0]
     assert v_out @ n / un == pytest.approx(e, abs=5e-3 + theta)
     # momentum is exact (antisymmetric pair forces)
     np.testing.assert_allclose(state["v"].sum(axis=0), [-v, 0, 0], atol=1e-12)

@@ -14,7 +14,8 @@ import taichi as ti
 from helpers import steel
 from taimill.analysis.theory import pinning_friction
 from taimill.calibration.runs import impact_spec
-from taimill.model import laws as laws_np
+from taimill.model.contact import rolling
+from taimill.model.contact.registry import ROLLING
 from taimill.model.frame import Ramp
 from taimill.model.params import Friction, load_preset
 from taimill.model.spec import from_preset
@@ -58,11 +59,11 @@ def test_rolling_torque_equals_numpy_twin_and_never_reverses_the_rolling():
     mu_r, r, inv_i, dt = 0.1, ball.radius, 2.0 / ball.inertia, 2e-6
     out = np.zeros((400, 4))
     _eval_rolling(w, n, fn, mu_r, r, inv_i, dt, out)
-    want = np.array([laws_np.rolling_torque(w[i], n[i], fn[i], mu_r, r, inv_i, dt) for i in range(400)])
-    diss = np.array([laws_np.rolling_dissipation(want[i], w[i], n[i], inv_i, dt) for i in range(400)])
+    want = np.array([rolling.rolling_torque(w[i], n[i], fn[i], mu_r, r, inv_i, dt) for i in range(400)])
+    diss = np.array([rolling.rolling_dissipation(want[i], w[i], n[i], inv_i, dt) for i in range(400)])
     np.testing.assert_allclose(out[:, :3], want, rtol=1e-12, atol=1e-20)
     np.testing.assert_allclose(out[:, 3], diss, rtol=1e-12, atol=1e-30)
-    w_r = np.array([laws_np.rolling_velocity(w[i], n[i]) for i in range(400)])
+    w_r = np.array([rolling.rolling_velocity(w[i], n[i]) for i in range(400)])
     after = w_r + want * inv_i * dt
     assert (np.einsum("ij,ij->i", after, w_r) >= -1e-12 * np.einsum("ij,ij->i", w_r, w_r)).all()  # never reversed
     assert (np.abs(np.einsum("ij,ij->i", want, n)) < 1e-12 * (1 + np.linalg.norm(want, axis=1))).all()  # no twist
@@ -74,8 +75,8 @@ def test_rolling_torque_equals_numpy_twin_and_never_reverses_the_rolling():
 def test_rolling_resistance_is_off_by_default_and_in_the_registry():
     p = load_preset(CY)
     assert all(f.mu_r == 0.0 for f in p.frictions)
-    assert [m.name for m in laws_np.ROLLING] == ["constant-torque"]
-    # the capped torque adds no time-step bound (see laws._constant_torque_dt): auto dt unchanged
+    assert "constant-torque" in ROLLING and ROLLING["constant-torque"].dt_limit(1.0, 0.1, 1.0, 1.0) == float("inf")
+    # the capped torque adds no time-step bound (see rolling._constant_torque_dt): auto dt unchanged
     on = load_preset(CY, {"friction.mu_r": 0.1})
     assert on.dt == p.dt and on.frictions[1].mu_r == 0.1
 

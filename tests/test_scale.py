@@ -224,5 +224,5 @@ def test_a_presets_two_contact_types_are_calibrated_in_one_batch(monkeypatch):
     monkeypatch.setattr(laws, "_DAMPING", {})
     p = load_preset(ROOT / "presets" / "p4-cy-steel.toml", {"law": "hertz-mindlin"})
     assert calls.count(2000) == 4, calls  # 4 bisection rounds, both contact types in each
-    c = [laws.calibrate_damping(q.law_id, q.e, q.k, q.n, q.m_eff, q.u_ref, q.d) for q in (p.ball_ball, p.ball_wall)]
+    c = [laws.calibrate_damping(q.model, q.e, q.k, q.m_eff, q.u_ref, q.d) for q in (p.ball_ball, p.ball_wall)]
     assert calls.count(2000) == 4 and c == [p.ball_ball.c, p.ball_wall.c]  # cached

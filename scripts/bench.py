@@ -73,7 +73,13 @@ tick-sampled: ±0.2 for bursty or short measurements). With others near 1 on a
 On a shared machine the CPU-time columns (time.process_time of the measuring process)
 are the per-core figures to quote; wall figures then measure the machine's load.
 
+8. A/B (`--ab DIR`, alone): the reference case (CPU µs per step, one thread, 3 s) and the
+   settled 10⁵ dense bed of section 5 (CPU ns per ball-step) from this checkout and
+   from the one in DIR, interleaved rounds in one run, best of each: a change's
+   before/after on the same machine at the same time.
+
     scripts/bench.py [--quick] [--only reference|scaling|recording|sweep|dense|presets|trajectory] [--liggghts-all] [--json FILE]
+    scripts/bench.py --ab DIR
 """
 
 from __future__ import annotations
@@ -367,11 +373,13 @@ def worker_main(task_json: str):
 
 
 # ---------------------------------------------------------------- parent side
-def measure(task: dict, timeout: float = WORKER_TIMEOUT) -> dict:
-    """Run one measurement in a fresh interpreter: its result, or {"error": why}."""
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", json.dumps(task)]
+def measure(task: dict, timeout: float = WORKER_TIMEOUT, root: Path = ROOT) -> dict:
+    """Run one measurement in a fresh interpreter: its result, or {"error": why}.
+    `root`: the checkout whose taimill (and bench worker) runs it (section 8)."""
+    cmd = [sys.executable, str(root / "scripts" / "bench.py"), "--worker", json.dumps(task)]
+    env = os.environ | {"PYTHONPATH": str(root)} if root != ROOT else None
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT)
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=root, env=env)
     except subprocess.TimeoutExpired:
         return {"error": f"timed out after {timeout} s"}
     for line in proc.stdout.splitlines():
@@ -1020,6 +1028,47 @@ def print_dense_row(r: dict):
 
 
 # ---------------------------------------------------------------- main
+# ---- 8. A/B against another checkout
+AB_ROUNDS = 3  # interleaved rounds: this tree, the other, ...; the best of each is quoted
+AB_REFERENCE_SECONDS = 3.0  # s simulated, CY steel on one thread
+AB_BED_N = 100_000  # the settled dense bed of section 5
+
+
+def ab_section(other: Path) -> list[dict]:
+    """The same measurements from this checkout and from `other` (e.g. a worktree of
+    the commit before a change), interleaved in one run so that both see the same
+    machine: the reference case on one thread (CPU µs per step) and the settled 10⁵
+    dense bed (CPU ns per ball-step after DENSE_SETTLE steps). Each worker imports the
+    taimill of its own checkout (PYTHONPATH)."""
+    print(f"\n8. A/B: this checkout ({ROOT}) against {other}, {AB_ROUNDS} interleaved rounds, best of each;"
+          " one thread, CPU time")
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="taimill-ab-") as tmp:
+        bed = dense_case(Path(tmp), AB_BED_N, False)
+        for rnd in range(AB_ROUNDS):
+            for label, root in (("this", ROOT), ("other", other)):
+                r = measure(dict(kind="reference", duration=AB_REFERENCE_SECONDS, threads=1, copies=1, public=False,
+                                 use_grid=False), root=root)
+                rows.append(dict(case="CY steel", tree=label, round=rnd, value=r["cpu"] / r["steps"] * 1e6 if "cpu" in r
+                                 else None, unit="CPU µs/step", **r))
+                r = measure(dict(kind="dense", preset=str(bed), steps=DENSE_STEPS[AB_BED_N], threads=1, drum=False,
+                                 settle=DENSE_SETTLE[AB_BED_N], spawned=time.time()), timeout=3600, root=root)
+                settled = r.get("settled", {})
+                value = settled["cpu"] / (settled["steps"] * AB_BED_N) * 1e9 if settled else None
+                rows.append(dict(case=f"bed {AB_BED_N} settled", tree=label, round=rnd, value=value,
+                                 unit="CPU ns/ball-step", **r))
+                for row in rows[-2:]:
+                    shown = f"{row['value']:.4f}" if row["value"] is not None else row.get("error", "failed")
+                    print(f"  round {rnd} {row['tree']:5} {row['case']:20} {shown} {row['unit']}", flush=True)
+    for case, unit in dict.fromkeys((r["case"], r["unit"]) for r in rows):
+        best = {t: min((r["value"] for r in rows if r["case"] == case and r["tree"] == t and r["value"] is not None),
+                       default=None) for t in ("this", "other")}
+        if None not in best.values():
+            print(f"  {case}: this {best['this']:.4f}, other {best['other']:.4f} {unit} (best of {AB_ROUNDS});"
+                  f" this / other = {best['this'] / best['other']:.3f}")
+    return rows
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="short run for CI (< 2 min)")
@@ -1027,6 +1076,8 @@ def main():
                     help="run one section")
     ap.add_argument("--liggghts-all", action="store_true", help="dense beds: also run LIGGGHTS at 10⁶ balls")
     ap.add_argument("--json", type=Path, metavar="FILE", help="write every number to FILE")
+    ap.add_argument("--ab", type=Path, metavar="DIR", help="only section 8: this checkout against the one in DIR"
+                    " (e.g. `git worktree add DIR HEAD~1`), interleaved")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
@@ -1035,6 +1086,9 @@ def main():
     t0 = time.perf_counter()
     report = dict(machine=machine(), quick=args.quick)
     print_machine(report["machine"])
+    if args.ab:
+        report["ab"] = ab_section(args.ab.resolve())
+        args.only = "ab"
     if args.only in (None, "reference"):
         duration = QUICK_DURATION if args.quick else FULL_DURATION
         report["reference_duration"] = duration

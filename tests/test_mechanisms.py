@@ -36,7 +36,7 @@ CASES = ([pytest.param(p, k, id=f"{p.stem}-{k}") for p in CI_PRESETS for k in RA
 def test_mechanisms_sum_to_the_dissipated_power(path, ratio):
     # 0.3 s each (window 0.05-0.3 s). Each contact's per-step dissipation is added to
     # the total and to exactly one mechanism (the mechanisms one step earlier, see
-    # physics/contacts.book_mechanism), so the two differ by rounding and one step's
+    # physics/events.book_mechanism), so the two differ by rounding and one step's
     # dissipation at the window's ends; 1 % is the stated bound.
     s = run(load_preset(path, {"ratio": ratio, "duration": 0.3}))
     assert s["dissipated_power"] > 0

@@ -24,7 +24,7 @@ from taimill.model.ranges import RANGES
 from taimill.model import laws as laws_np
 from taimill.model.contact.model import NormalModel
 from taimill.model.contact.registry import NAMES as LAW_NAMES, law_by_name
-from taimill.model.contact.springs import hertz_stiffness
+from taimill.model.contact.springs import hertz_stiffness, with_exponent
 
 PACKAGE = Path(__file__).resolve().parent.parent
 ROOT = PACKAGE.parent
@@ -84,8 +84,11 @@ class NormalLaw:
 
     @property
     def model(self) -> NormalModel:
-        """The law's composition of a spring and a damping (taimill.model.contact)."""
-        return law_by_name(self.law)
+        """The law's composition of a spring and a damping (taimill.model.contact); a
+        power spring if n differs from the law's own exponent (sensitivity studies)."""
+        law = law_by_name(self.law)
+        spring = with_exponent(law.spring, self.n)
+        return law if spring is law.spring else dataclasses.replace(law, name=f"{law.name}, n = {self.n:g}", spring=spring)
 
 
 @dataclass(frozen=True)

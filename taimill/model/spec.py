@@ -49,7 +49,7 @@ class MillSpec:
     @property
     def contact_models(self) -> tuple[ContactModel, ContactModel]:
         """(ball-ball, ball-wall) compositions of sub-models the kernels must hold."""
-        return tuple(contact_model(law.law) for law in (self.ball_ball, self.ball_wall))
+        return tuple(contact_model(law.model) for law in (self.ball_ball, self.ball_wall))
 
     @property
     def n(self):

@@ -16,7 +16,8 @@ import taichi as ti
 
 from taimill.physics import state as S
 from taimill.physics.neighbours import rebuild_parallel, rebuild_serial
-from taimill.physics.contacts import ball_forces, pool_settle, release_rows
+from taimill.physics.contacts import ball_forces
+from taimill.physics.pool import pool_settle, release_rows
 from taimill.physics.frame import drive_turning, psi_at, steady, ramp_at, ramp_turn, wall_velocity_ground
 from taimill.physics.integrator import frame_acceleration, integrate
 

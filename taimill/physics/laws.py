@@ -16,17 +16,22 @@ def smoothstep(s):
 
 # ------------------------------------------------------------------ springs: uⁿ
 @ti.func
-def hertz_power(u):
+def hertz_power(u, n: ti.template()):
     """u^(3/2) through a square root (5× cheaper than pow)."""
     return u * ti.sqrt(u)
 
 
 @ti.func
-def linear_power(u):
+def linear_power(u, n: ti.template()):
     return u
 
 
-SPRINGS = {"hertz": hertz_power, "linear": linear_power}
+@ti.func
+def power_law(u, n: ti.template()):
+    return ti.pow(u, n)
+
+
+SPRINGS = {"hertz": hertz_power, "linear": linear_power, "power": power_law}
 
 
 # ------------------------------------------------------------------ damping shapes g(u)
@@ -62,7 +67,7 @@ DAMPINGS = {"adams-step": step_shape, "viscous": unit_shape, "hunt-crossley": hu
 def normal_force(law: ti.template(), u, udot, k, c, d, m_eff):
     """(F, F_elastic), N, of the NormalModel `law`: F = max(0, k uⁿ + c g(u) u̇), never
     attractive. u > 0."""
-    un = SPRINGS[law.spring.name](u)
+    un = SPRINGS[law.spring.name](u, ti.static(law.n))
     f_el = k * un
     g = DAMPINGS[law.damping.name](u, un, k, ti.static(law.n), d, m_eff)
     return ti.max(0.0, f_el + c * g * udot), f_el

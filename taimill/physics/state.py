@@ -7,7 +7,7 @@ kept apart from State (evolving). Shapes in brackets, SI units.
 
 import taichi as ti
 
-from taimill.model.contact.registry import contact_model
+from taimill.model.contact.registry import contact_model, law_by_name
 from taimill.model.geometry import PIECE_COLUMNS
 from taimill.schema import DERIVED_EVENT_COLUMNS, DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS, MECHANISM_COLUMNS
 
@@ -75,7 +75,7 @@ LAWS_DEFAULT = "adams-impact"
 def default_models() -> tuple:
     """The thesis' contact model for both contact types (adams-impact, regularised
     Coulomb friction, constant rolling torque)."""
-    one = (contact_model(LAWS_DEFAULT),)
+    one = (contact_model(law_by_name(LAWS_DEFAULT)),)
     return one, one
 
 

@@ -22,7 +22,7 @@ def _by_name(*models) -> dict:
     return {m.name: m for m in models}
 
 
-SPRINGS = _by_name(springs.HERTZ, springs.LINEAR)
+SPRINGS = _by_name(springs.HERTZ, springs.LINEAR, springs.POWER)
 DAMPINGS = _by_name(damping.STEP, damping.VISCOUS, damping.HUNT_CROSSLEY, damping.TSUJI)
 TANGENTIAL = _by_name(tangential.REGULARISED_COULOMB)
 ROLLING = _by_name(rolling.CONSTANT_TORQUE)
@@ -45,6 +45,7 @@ def law_by_name(name: str) -> NormalModel:
     return LAWS[name]
 
 
-def contact_model(law: str, tangential_name: str = DEFAULT_TANGENTIAL, rolling_name: str = DEFAULT_ROLLING) -> ContactModel:
+def contact_model(normal: NormalModel, tangential_name: str = DEFAULT_TANGENTIAL,
+                  rolling_name: str = DEFAULT_ROLLING) -> ContactModel:
     """The composition a contact type runs with."""
-    return ContactModel(LAWS[law], TANGENTIAL[tangential_name], ROLLING[rolling_name])
+    return ContactModel(normal, TANGENTIAL[tangential_name], ROLLING[rolling_name])

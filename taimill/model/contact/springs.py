@@ -37,3 +37,9 @@ class Spring:
 
 HERTZ = Spring("hertz", 1.5)  # eqs 2.10-2.12
 LINEAR = Spring("linear", 1.0)  # eq 2.13 with k* of eq 2.17
+POWER = Spring("power", 1.5)  # any other exponent (the sensitivity study of thesis Fig 2.5 varies n)
+
+
+def with_exponent(spring: Spring, n: float) -> Spring:
+    """`spring` if its exponent is n, else the power spring with exponent n."""
+    return spring if spring.n == n else Spring(POWER.name, n)

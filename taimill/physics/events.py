@@ -1,0 +1,82 @@
+"""Collision events: a contact's accumulators opened and updated in its pool row, the
+event record written when it closes, and the dissipation ledger by mechanism
+(docs/model.md, collision events)."""
+
+import taichi as ti
+
+from taimill.physics import state as S
+
+
+@ti.func
+def book_contact(F: ti.template(), b, row, is_new, t, u, udot, slip, p, fn, dn, dtf):
+    """Open (is_new) or update the event in pool row `row`. Returns the contact's
+    class for the mechanism ledger: an impact while its onset normal speed reaches the
+    stress-event threshold and it is younger than the impact age (model/mechanisms.py)."""
+    impact = False
+    if is_new:
+        F.pool[b, row] = ti.Vector([t, udot, slip.norm(), p[0], p[1], p[2], fn, u, dn, dtf])
+        impact = udot >= F.stress_un[b]
+    else:
+        q = F.pool[b, row]
+        q[S.SLOT_FPEAK] = ti.max(q[S.SLOT_FPEAK], fn)
+        q[S.SLOT_UPEAK] = ti.max(q[S.SLOT_UPEAK], u)
+        q[S.SLOT_DN] += dn
+        q[S.SLOT_DT] += dtf
+        F.pool[b, row] = q
+        impact = q[S.SLOT_UN] >= F.stress_un[b] and t - q[S.SLOT_T0] <= F.impact_age[b]
+    return impact
+
+
+@ti.func
+def emit_event(F: ti.template(), b, i, k, t):
+    q = F.pool[b, F.slot_row[b, i, k]]
+    mi = F.m[b, i]
+    body_j, kind, m_eff = -1.0 - k, 1.0, mi
+    if k >= S.WALLS:
+        j = F.slot_partner[b, i, k]
+        body_j, kind, m_eff = ti.cast(S.user_id(F, b, j), ti.f64), 0.0, mi * F.m[b, j] / (mi + F.m[b, j])
+    row = ti.Vector.zero(ti.f64, S.NCOL)  # the schema's event columns, by name
+    row[S.EV["t_start"]] = q[S.SLOT_T0]
+    row[S.EV["duration"]] = t - q[S.SLOT_T0]
+    row[S.EV["body_i"]] = ti.cast(S.user_id(F, b, i), ti.f64)
+    row[S.EV["body_j"]] = body_j
+    row[S.EV["kind"]] = kind
+    row[S.EV["x"]] = q[S.SLOT_PX]
+    row[S.EV["y"]] = q[S.SLOT_PY]
+    row[S.EV["z"]] = q[S.SLOT_PZ]
+    row[S.EV["un"]] = q[S.SLOT_UN]
+    row[S.EV["ut"]] = q[S.SLOT_UT]
+    row[S.EV["m_eff"]] = m_eff
+    row[S.EV["peak_force"]] = q[S.SLOT_FPEAK]
+    row[S.EV["peak_penetration"]] = q[S.SLOT_UPEAK]
+    row[S.EV["dissipated_normal"]] = q[S.SLOT_DN]
+    row[S.EV["dissipated_friction"]] = q[S.SLOT_DT]
+    e = ti.atomic_add(F.n_events[b], 1)
+    if e < F.event_capacity:
+        F.events[b, e] = row
+
+
+@ti.func
+def close_events(F: ti.template(), b, i, was_open, seen, t):
+    """Contacts open before this step and not seen in it have separated: their events
+    are written, their rows released after the pass (release_rows)."""
+    gone = was_open & ~seen
+    F.slot_closed[b, i] = gone
+    k = 0
+    while gone:
+        if gone & 1:
+            emit_event(F, b, i, k, t)
+        gone >>= 1
+        k += 1
+    F.slot_mask[b, i] = seen
+
+
+@ti.func
+def book_mechanism(F: ti.template(), b, i, kind, impact, dn, dtf):
+    """Add a contact's normal and friction dissipation of this step to its kind and
+    class in ball i's mechanism ledger (state.NMECH layout). Booked here, in the force
+    pass, so a frame's mechanism columns include its own step, which `dissipated`
+    books after the frame: they differ by at most one step's dissipation."""
+    c = kind * 4 + ti.select(impact, 0, 2)
+    F.mech[b, i, c] = F.mech[b, i, c] + dn  # one writer per ball: no atomic (integrator.integrate)
+    F.mech[b, i, c + 1] = F.mech[b, i, c + 1] + dtf

@@ -1,0 +1,108 @@
+"""The open-contact pool of a mill: per-ball slots and the rows holding their event data.
+
+A slot holds only the index of its event's row in the mill's pool of open-contact rows
+(state.pool_rows: at most 6 a ball in large mills; a dense bed has 2-3, not 15). A
+contact that opens takes one of its owner's home rows (state.HOME_ROWS) if one is free,
+else a released row from the shared stack, else a new one (atomic pop and count: in
+parallel mode the balls of the mill do it concurrently); rows are released only after
+the force pass, by release_rows in the integration pass, so pops and pushes never race.
+Which row a contact gets changes nothing but where its sums are kept.
+"""
+
+import taichi as ti
+
+from taimill.physics import state as S
+
+
+@ti.func
+def slot_row(F: ti.template(), b, i, k, is_new, taken):
+    """Pool row of the event in slot k of ball i: its own if open, else a home row of
+    ball i that none of its slots holding a row (bits of `taken`: open before this step
+    or opened in it; closed ones keep theirs until release_rows) has, else a row taken
+    from the shared stack; -1 (and POOL_FULL flagged) if none is left. Only ball i's
+    thread touches its home rows: no atomics."""
+    row = -1
+    if is_new:
+        if ti.static(F.home > 0):
+            used = 0
+            mask = taken
+            s = 0
+            while mask:
+                if mask & 1:
+                    r = F.slot_row[b, i, s] - i * F.home
+                    if 0 <= r and r < F.home:
+                        used |= 1 << r
+                mask >>= 1
+                s += 1
+            h = 0
+            while h < F.home and used & (1 << h):
+                h += 1
+            if h < F.home:
+                row = i * F.home + h
+        if row < 0:
+            e = ti.atomic_sub(F.pool_top[b], 1) - 1  # a released row first
+            if e >= 0:
+                row = F.pool_free[b, e]
+            else:  # the stack is empty (its top goes negative until release_rows): a new row
+                row = F.spill_base + ti.atomic_add(F.pool_used[b], 1)
+                if row >= F.pool_capacity:
+                    row = -1
+                    F.status[b] = S.POOL_FULL
+                    F.bad_ball[b] = S.user_id(F, b, i)
+        if row >= 0:
+            F.slot_row[b, i, k] = row
+    else:
+        row = F.slot_row[b, i, k]
+    return row
+
+
+@ti.func
+def pool_settle(F: ti.template(), b):
+    """After the force pass, before release_rows: the stack is empty if pops ran past it."""
+    if F.pool_top[b] < 0:
+        F.pool_top[b] = 0
+
+
+@ti.func
+def release_rows(F: ti.template(), b, i):
+    """Give the pool rows of ball i's events closed in this step's force pass back: a
+    home row to ball i, a shared one to the free stack (a pass without pops:
+    pool_settle first)."""
+    gone = F.slot_closed[b, i]
+    if gone:
+        k = 0
+        while gone:
+            if gone & 1:
+                row = F.slot_row[b, i, k]
+                if row >= F.spill_base:  # a home row is free once no slot holds it
+                    F.pool_free[b, ti.atomic_add(F.pool_top[b], 1)] = row
+            gone >>= 1
+            k += 1
+        F.slot_closed[b, i] = 0
+
+
+@ti.func
+def partner_slot(F: ti.template(), b, i, j, taken):
+    """Slot of ball i holding partner j among the open ones (bits of `taken`), else the
+    lowest free slot, now marked for j; -1 if every slot is taken. Walks only the set
+    bits (a ball holds a few open contacts, not 12), then, for a new contact, the
+    lowest clear bit."""
+    found = -1
+    mask = taken >> S.WALLS
+    k = S.WALLS
+    while mask:
+        if mask & 1 and F.slot_partner[b, i, k] == j:
+            found = k
+        mask >>= 1
+        k += 1
+    if found < 0:
+        free = -1
+        k = S.WALLS
+        while k < S.SLOTS and free < 0:
+            if not taken & (1 << k):
+                free = k
+            k += 1
+        if free >= 0:
+            found = free
+            F.slot_partner[b, i, free] = j
+    return found

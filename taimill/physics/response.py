@@ -1,0 +1,82 @@
+"""The response at one contact: force, friction and rolling torque of the contact
+model compiled for its contact type, and what its owner books of it (dissipation and
+stored energy). Pure functions of the contact's local quantities and the mill's
+coefficients."""
+
+import taichi as ti
+
+from taimill.physics.laws import ROLLING, TANGENTIAL, elastic_energy, normal_force
+
+
+@ti.func
+def respond(model: ti.template(), F: ti.template(), b, ct: ti.template(), u, udot, slip, m_eff, inv_mass_t, dt):
+    """(F_n, elastic F_n, friction force) of the ContactModel `model` (compiled in)."""
+    fn, fel = normal_force(model.normal, u, udot, F.law_k[b, ct], F.law_c[b, ct], F.law_d[b, ct], m_eff)
+    ft = TANGENTIAL[model.tangential.name](slip, fn, F.mu_s[b, ct], F.mu_d[b, ct], F.v_s[b, ct],
+                                                      F.v_d[b, ct], inv_mass_t, dt)
+    return fn, fel, ft
+
+
+@ti.func
+def contact_response(F: ti.template(), b, ct: ti.template(), u, nrm, vrel, m_eff, inv_mass_t, dt):
+    """Force on the first body at a contact of type ct (0 ball-ball, 1 ball-wall) with
+    overlap u, unit normal nrm (first body → second), relative contact-point velocity
+    vrel. Returns (force, u̇, slip, F_n, elastic F_n, friction force). The contact model
+    is the engine's only one for ct (F.models[ct], compiled in), or, when a batch mixes
+    models, the one F.variant[b, ct] picks among them. Rolling resistance (if on) is
+    added by the caller, who knows the spins; its work is booked with the friction work
+    (the shear part of the contact's dissipation)."""
+    udot = vrel.dot(nrm)
+    slip = vrel - udot * nrm
+    fn, fel = 0.0, 0.0
+    ft = ti.Vector([0.0, 0.0, 0.0])
+    if ti.static(len(F.models[ct]) == 1):
+        fn, fel, ft = respond(F.models[ct][0], F, b, ct, u, udot, slip, m_eff, inv_mass_t, dt)
+    else:
+        for v in ti.static(range(len(F.models[ct]))):
+            if F.variant[b, ct] == v:
+                fn, fel, ft = respond(F.models[ct][v], F, b, ct, u, udot, slip, m_eff, inv_mass_t, dt)
+    return -fn * nrm + ft, udot, slip, fn, fel, ft
+
+
+@ti.func
+def stored_energy(F: ti.template(), b, ct: ti.template(), u, fel):
+    """Energy (J) in the spring of a contact of type ct with overlap u, elastic force fel."""
+    el = 0.0
+    if ti.static(len(F.models[ct]) == 1):
+        el = elastic_energy(u, fel, ti.static(F.models[ct][0].normal.n))
+    else:
+        for v in ti.static(range(len(F.models[ct]))):
+            if F.variant[b, ct] == v:
+                el = elastic_energy(u, fel, ti.static(F.models[ct][v].normal.n))
+    return el
+
+
+@ti.func
+def rolling_response(F: ti.template(), b, ct: ti.template(), spin_rel, nrm, fn, r_eff, inv_inertia, dt):
+    """(torque on the first body, energy dissipated over the step) of the rolling model
+    of contact type ct; the caller calls it only while F.mu_r[b, ct] > 0."""
+    tq = ti.Vector([0.0, 0.0, 0.0])
+    d = 0.0
+    if ti.static(len(F.models[ct]) == 1):
+        tq, d = ROLLING[F.models[ct][0].rolling.name](spin_rel, nrm, fn, F.mu_r[b, ct], r_eff, inv_inertia, dt)
+    else:
+        for v in ti.static(range(len(F.models[ct]))):
+            if F.variant[b, ct] == v:
+                tq, d = ROLLING[F.models[ct][v].rolling.name](spin_rel, nrm, fn, F.mu_r[b, ct], r_eff,
+                                                                          inv_inertia, dt)
+    return tq, d
+
+
+@ti.func
+def contact_energy(F: ti.template(), b, ct: ti.template(), u, udot, slip, fn, fel, ft, m_eff, inv_mass_t, dt):
+    """What a contact's owner books of its response (contact_response): (normal
+    dissipation, friction dissipation, stored elastic energy U). Dissipation over the
+    step, (F - F_el) u̇ (damper and clamp) and -F_t · slip (friction), with u̇ and slip at
+    mid-step as this contact's own impulse changes them: start-of-step values overstate
+    it, most for stiff near-stick friction. (Only the owner's visit computes it: 3 %
+    of a bed's force pass.)"""
+    udot_mid = udot - 0.5 * fn * dt / m_eff
+    dn = (fn - fel) * udot_mid * dt
+    dtf = (-ft.dot(slip) - 0.5 * ft.norm_sqr() * inv_mass_t * dt) * dt
+    return dn, dtf, stored_energy(F, b, ct, u, fel)

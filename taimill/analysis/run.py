@@ -3,20 +3,19 @@ tables, so a store left by a killed run is analysed up to its commit markers."""
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from taimill.analysis.events import EventStats
-from taimill.analysis.regime import RegimeFeatures
 from taimill.analysis.rungeometry import RunGeometry
 from taimill.analysis.sampled import SampledStats
 from taimill.analysis.spatial import RadialDensity, WallMap, contact_map
-from taimill.analysis.theory import critical_ratio, single_ball_hit
+from taimill.analysis.summary import Summary
 from taimill.errors import ConfigError, StoreError
 from taimill.model.mechanisms import STRESS_MIN_UN
 from taimill.store.run import RunStore, open_run, why
-from taimill.analysis.summary import EnergyLedger
 from taimill.schema import with_units
 
 
@@ -26,45 +25,68 @@ class RunAnalysis:
     geom: RunGeometry
     t0: float  #: s, start of the analysis window
     t1: float  #: s, last committed frame
-    event: EventStats
-    density: RadialDensity
-    regime: dict
-    wall: WallMap
-    energy: dict
+    summary: Summary  #: the run summary's accumulators over the window (not the store's own summary)
     sampled: dict | None
     sampled_error: str | None = None
     contacts: dict = field(default_factory=dict)
-    all_contacts: EventStats | None = None  #: the event estimator over every event
 
     @property
     def tau(self) -> float:
         return max(self.t1 - self.t0, 0.0)
 
+    @functools.cached_property
+    def parts(self) -> dict:
+        """The summary's parts over the window (Summary.parts), computed once: the
+        accumulators are complete when `analyse` returns."""
+        return self.summary.parts(self.t1)
+
+    @property
+    def event(self) -> EventStats:
+        """The event estimator over stress events."""
+        return self.summary.stats
+
+    @property
+    def all_contacts(self) -> EventStats:
+        """The event estimator over every event."""
+        return self.summary.all_contacts
+
+    @property
+    def density(self) -> RadialDensity:
+        return self.summary.density
+
+    @property
+    def wall(self) -> WallMap:
+        return self.summary.wall
+
+    @property
+    def energy(self) -> dict:
+        """The energy keys (dissipated power, its mechanisms, the balance, drive work)."""
+        return self.parts["energy"]
+
     def quantities(self) -> dict:
         """Everything as one JSON-able dict; each estimator labelled; the units of its
         numbers in `units` (taimill.schema.SUMMARY_UNITS)."""
-        g = self.geom
+        g, p, energy = self.geom, self.parts, self.energy
         edges = self.density.edges
-        hit = single_ball_hit(g.plate_radius, g.jar_radius, g.ball_radius, g.plate.end, g.ratio, g.ball_mass)
         return with_units({
             "status": self.store.status if self.store.summary is not None else
             f"incomplete (status '{self.store.status}', no final summary: killed or still running)",
             "analysis_window": [self.t0, self.t1],
             "ratio": g.ratio, "plate_rpm": g.drive.plate_rpm,
-            "event_estimator": self.event.result(self.tau, g.volume, g.n_balls),
-            "all_contacts_estimator": self.all_contacts.result(self.tau, g.volume, g.n_balls) if self.all_contacts else {},
-            **{k: v for k, v in self.energy.items() if k.startswith(("dissipat", "main_sink"))},
+            "event_estimator": p["event_estimator"],
+            "all_contacts_estimator": p["all_contacts_estimator"],
+            **{k: v for k, v in energy.items() if k.startswith(("dissipat", "main_sink"))},
             "sampled_estimator": self.sampled if self.sampled is not None else {"error": self.sampled_error},
-            "dissipated_power": self.energy["dissipated_power"],
-            "energy_balance_error": self.energy["energy_balance_error"],
-            "drive_work": self.energy["drive_work"],
+            "dissipated_power": energy["dissipated_power"],
+            "energy_balance_error": energy["energy_balance_error"],
+            "drive_work": energy["drive_work"],
             "g_r": {"r_edges": edges.tolist(), "g": self.density.g.tolist()},
-            "randomness_index": self.density.randomness_index,
-            **self.regime,
-            "wear_hot_spot": self.wall.hot_spot(self.tau) if self.tau > 0 else {},
+            "randomness_index": p["randomness_index"],
+            **p["regime"],
+            "wear_hot_spot": p["wear_hot_spot"],
             "wall_energy": {"impact": self.wall.total("impact"), "friction": self.wall.total("friction")},
-            "critical_ratio": critical_ratio(g.plate_radius, g.jar_radius, g.ball_radius),
-            "single_ball_hit": hit,
+            "critical_ratio": p["critical_ratio"],
+            "single_ball_hit": p["single_ball_hit"],
         })
 
 
@@ -90,20 +112,12 @@ def analyse(run, *, analysis_start: float | None = None, min_un: float = STRESS_
         raise ConfigError(source, "--analysis-start", t0, f"[0, {t_end:g}) s, the stored run ends at {t_end:g} s")
     if min_un < 0:
         raise ConfigError(source, "--min-un", min_un, ">= 0 (m/s)")
-    stats = EventStats(t0, t_end, min_un)
-    stats.add(events)
-    every = EventStats(t0, t_end)
-    every.add(events)
-    density = RadialDensity(geom, t0)
-    density.add(frames)
-    features = RegimeFeatures(geom, store.radii, t0)
-    features.frames(frames)
-    features.events(events)
-    wall = WallMap(geom, t0)
-    wall.add({k: v[events["t_start"] < t_end] for k, v in events.items()})
-    ledger = EnergyLedger(t0)
+    # the window ends at the last committed frame: its estimators and wall map leave out later events
+    summary = Summary(geom, geom.n_balls, store.radii, t0, t_end, min_un=min_un)
+    summary.frames(frames)
+    summary.events(events)
     if len(energy["time"]):
-        ledger.add(energy)
+        summary.energy(energy)
     sampled, error = None, None
     stored_rate = _stored_rate(frames["time"], config)
     try:
@@ -114,10 +128,8 @@ def analyse(run, *, analysis_start: float | None = None, min_un: float = STRESS_
         if sampling_rate != 100.0:
             raise
         error = str(err)
-    return RunAnalysis(store=store, geom=geom, t0=t0, t1=t_end, event=stats, density=density,
-                       regime=features.result(), wall=wall, energy=ledger.result(t_end - t0),
-                       sampled=sampled, sampled_error=error, contacts=contact_map(geom, events, t0),
-                       all_contacts=every)
+    return RunAnalysis(store=store, geom=geom, t0=t0, t1=t_end, summary=summary, sampled=sampled, sampled_error=error,
+                       contacts=contact_map(geom, events, t0))
 
 
 def geometry(store: RunStore) -> RunGeometry:

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from taimill.analysis.theory import critical_ratio
 from taimill.model.geometry import Profile, build_profile, profile_sdf
 from taimill.model.drive import Drive
 from taimill.model.frame import Ramp
@@ -54,6 +55,12 @@ class RunGeometry:
     @property
     def jar_radius(self) -> float:
         return self.profile.bounding_radius
+
+    @property
+    def critical_ratio(self) -> float:
+        """K_c (negative) of one frictionless ball of the largest radius in this jar on
+        this plate (taimill.analysis.theory.critical_ratio)."""
+        return critical_ratio(self.plate_radius, self.jar_radius, self.ball_radius)
 
     @property
     def ratio(self) -> float:

@@ -55,7 +55,7 @@ class RadialDensity:
 
 
 class WallMap:
-    """Energy the jar walls receive, per unit area, over the window t_start ≥ t0: the
+    """Energy the jar walls receive, per unit area, over the window t0 ≤ t_start < t1 (s): the
     side wall unrolled (arc length × height) and the floor and lid (x × y).
 
     Two layers: `impact` (normal stress energy ½ m u̇_n² of ball–wall events, J) and
@@ -63,8 +63,8 @@ class WallMap:
     abrasive wear volume ∝ sliding work). Divided by cell area and window length they
     are W/m². Every wall event lands in exactly one cell, so Σ map · area = energy."""
 
-    def __init__(self, g: RunGeometry, t0: float = 0.0, cell: float | None = None):
-        self.geom, self.t0 = g, t0
+    def __init__(self, g: RunGeometry, t0: float = 0.0, cell: float | None = None, t1: float = math.inf):
+        self.geom, self.t0, self.t1 = g, t0, t1
         # a third of a ball radius, but at most MAX_CELLS across the jar (small beads in a
         # large jar: a finer map is unreadable and its set-up grows with the cell count)
         cell = cell or max(g.ball_radius / 3.0, 1e-4, 2.0 * g.jar_radius / MAX_CELLS, g.height / MAX_CELLS)
@@ -83,7 +83,7 @@ class WallMap:
                       "lid": np.zeros((nxy, nxy), np.int64)}
 
     def add(self, block: dict) -> None:
-        sel = (block["kind"] == 1) & (block["t_start"] >= self.t0)
+        sel = (block["kind"] == 1) & (block["t_start"] >= self.t0) & (block["t_start"] < self.t1)
         j = block["body_j"][sel]
         x, y, z = block["x"][sel], block["y"][sel], block["z"][sel]
         weights = {"impact": block["se_n"][sel], "friction": block["dissipated_friction"][sel]}

@@ -1,10 +1,12 @@
-"""Run summary (docs/outputs.md) accumulated from the stream, as a sink: the event-based
-stress-energy statistics over the analysis window, dissipated power, the energy
-balance, g(r) and its randomness index, the motion regime, the wear hot spot and the
-analytic landmarks (critical ratio, single-ball hit energy).
+"""Run summary (docs/outputs.md): the event-based stress-energy statistics over the
+analysis window, dissipated power, the energy balance, g(r) and its randomness index,
+the motion regime, the wear hot spot and the analytic landmarks (critical ratio,
+single-ball hit energy).
 
-NumPy only; running sums so a 24 s run never holds its tables in memory. The same
-accumulators (taimill.analysis) analyse stored runs afterwards.
+`Summary` holds the accumulators and computes the keys; the summary sink of a run, the
+analysis of a stored run (`taimill.analysis.run`) and the TUI's live window all use it,
+so a key means the same wherever it is shown. NumPy only; running sums so a 24 s run
+never holds its tables in memory.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from taimill.analysis.events import EventStats
 from taimill.analysis.regime import RegimeFeatures
 from taimill.analysis.rungeometry import RunGeometry
 from taimill.analysis.spatial import RadialDensity, WallMap
-from taimill.analysis.theory import critical_ratio, single_ball_hit
+from taimill.analysis.theory import single_ball_hit
 from taimill.model.mechanisms import STRESS_MIN_UN
 from taimill.schema import ENERGY_COLUMNS, MECHANISM_CLASSES, MECHANISM_COLUMNS, MECHANISM_KINDS, MECHANISM_PARTS
 
@@ -92,6 +94,97 @@ def mechanism_powers(power: np.ndarray) -> dict:
     return out
 
 
+class Summary:
+    """The accumulators of the run summary over the window t0 ≤ t < t1 (s; t1 = inf for a
+    stream, whose end is not known yet) and the summary keys they give.
+
+    geom: the run's RunGeometry; n_balls and radii (m) as a sink's start() gets them.
+    min_un: m/s, the headline statistics count stress events, events with at least this
+    onset normal speed (model/mechanisms.py). whole_run=False leaves out what only a
+    run's summary reports (the all-contacts twin, g(r), the wall map, the single-ball
+    hit): set up for every readout of a live window they would cost more than the window
+    itself. regime=False leaves out the regime, three quarters of a live window's cost
+    (contacts of every feature frame).
+
+    Feed the stream's blocks in the order they come: the regime sums its pieces in the
+    order they were first reached."""
+
+    def __init__(self, geom: RunGeometry, n_balls: int, radii, t0: float, t1: float = math.inf, *,
+                 min_un: float = STRESS_MIN_UN, whole_run: bool = True, regime: bool = True):
+        self.geom, self.n_balls, self.t0, self.whole_run = geom, n_balls, t0, whole_run
+        self.events_total = 0
+        self.stats = EventStats(t0, t1, min_un)
+        self.ledger = EnergyLedger(t0)
+        self.regime = RegimeFeatures(geom, radii, t0) if regime else None
+        self.all_contacts = EventStats(t0, t1) if whole_run else None
+        self.density = RadialDensity(geom, t0) if whole_run else None
+        self.wall = WallMap(geom, t0, t1=t1) if whole_run else None
+
+    def events(self, block: dict) -> None:
+        self.events_total += len(block["t_start"])
+        self.stats.add(block)
+        if self.regime:
+            self.regime.events(block)
+        if self.whole_run:
+            self.all_contacts.add(block)
+            self.wall.add(block)
+
+    def frames(self, block: dict) -> None:
+        if self.regime:
+            self.regime.frames(block)
+        if self.whole_run:
+            self.density.add(block)
+
+    def energy(self, block: dict) -> None:
+        self.ledger.add(block)
+
+    def parts(self, t1: float) -> dict:
+        """The summary over [t0, t1] (t1: s, the window's end) by accumulator, named as
+        `taimill analyse` reports them: `event_estimator`, `all_contacts_estimator`,
+        `energy` (the ledger's keys), `randomness_index`, `regime` (the regime keys),
+        `wear_hot_spot`, `critical_ratio`, `single_ball_hit`; those not accumulated are
+        left out."""
+        tau = max(t1 - self.t0, 0.0)
+        g = self.geom
+        out = {"event_estimator": self.stats.result(tau, g.volume, self.n_balls), "energy": self.ledger.result(tau)}
+        if self.regime:
+            out["regime"] = self.regime.result()
+        if self.whole_run:
+            out["all_contacts_estimator"] = self.all_contacts.result(tau, g.volume, self.n_balls)
+            out["randomness_index"] = self.density.randomness_index
+            out["wear_hot_spot"] = self.wall.hot_spot(tau) if tau > 0 else {}
+            out["single_ball_hit"] = single_ball_hit(g.plate_radius, g.jar_radius, g.ball_radius, g.plate.end, g.ratio,
+                                                     g.ball_mass)
+        out["critical_ratio"] = g.critical_ratio
+        return out
+
+    def result(self, t1: float) -> dict:
+        """The summary keys (docs/outputs.md) over [t0, t1] (t1: s): the stress-event
+        statistics, `all_contacts`, `events_total`, the energy keys, `randomness_index`,
+        the regime keys with `side_wall_fraction`, `wear_hot_spot`, `critical_ratio`,
+        `single_ball_se`, `analysis_window` and `sim_seconds`, in that order; those not
+        accumulated are left out."""
+        p = self.parts(t1)
+        out = p["event_estimator"]
+        if self.whole_run:
+            out["all_contacts"] = p["all_contacts_estimator"]
+            out["events_total"] = self.events_total
+        out.update(p["energy"])
+        if self.whole_run:
+            out["randomness_index"] = p["randomness_index"]
+        if self.regime:
+            out.update(p["regime"])
+            if self.whole_run:
+                out["side_wall_fraction"] = p["regime"]["regime_criteria"].get("wall_fraction", math.nan)
+        if self.whole_run:
+            out["wear_hot_spot"] = p["wear_hot_spot"]
+        out["critical_ratio"] = p["critical_ratio"]
+        if self.whole_run:
+            out["single_ball_se"] = p["single_ball_hit"]["se"]
+        out.update(analysis_window=[self.t0, t1], sim_seconds=t1)
+        return out
+
+
 class SummarySink:
     """Sink computing the summary keys (docs/outputs.md) over the analysis window [t0, end).
 
@@ -103,50 +196,23 @@ class SummarySink:
     def __init__(self, analysis_start: float, duration: float, jar_radius=None, ball_radius=None, *,
                  min_un: float = STRESS_MIN_UN):
         self.t0, self.duration, self.min_un = analysis_start, duration, min_un
-        self.events_total = 0
-        self.ledger = EnergyLedger(analysis_start)
-        self.stats = EventStats(analysis_start, min_un=min_un)
-        self.all_contacts = EventStats(analysis_start)
 
     def start(self, config, n_balls, radii):
-        self.geom = RunGeometry.from_config(config, radii)
-        self.n_balls = n_balls
-        self.density = RadialDensity(self.geom, self.t0)
-        self.regime = RegimeFeatures(self.geom, radii, self.t0)
-        self.wall = WallMap(self.geom, self.t0)
+        self.summary = Summary(RunGeometry.from_config(config, radii), n_balls, radii, self.t0, min_un=self.min_un)
 
     def events(self, block):
-        self.events_total += len(block["t_start"])
-        self.stats.add(block)
-        self.all_contacts.add(block)
-        self.regime.events(block)
-        self.wall.add(block)
+        self.summary.events(block)
 
     def frames(self, block):
-        self.density.add(block)
-        self.regime.frames(block)
+        self.summary.frames(block)
 
     def energy(self, block):
-        self.ledger.add(block)
+        self.summary.energy(block)
 
     def finish(self, summary, status):
         pass
 
     def result(self, sim_seconds: float, wall_seconds: float) -> dict:
-        tau = max(sim_seconds - self.t0, 0.0)
-        g = self.geom
-        out = self.stats.result(tau, g.volume, self.n_balls)
-        out["all_contacts"] = self.all_contacts.result(tau, g.volume, self.n_balls)
-        out["events_total"] = self.events_total
-        out.update(self.ledger.result(tau))
-        out["randomness_index"] = self.density.randomness_index
-        regime = self.regime.result()
-        out.update(regime)
-        out["side_wall_fraction"] = regime["regime_criteria"].get("wall_fraction", math.nan)
-        out["wear_hot_spot"] = self.wall.hot_spot(tau) if tau > 0 else {}
-        out["critical_ratio"] = critical_ratio(g.plate_radius, g.jar_radius, g.ball_radius)
-        hit = single_ball_hit(g.plate_radius, g.jar_radius, g.ball_radius, g.plate.end, g.ratio, g.ball_mass)
-        out["single_ball_se"] = hit["se"]
-        out.update(analysis_window=[self.t0, sim_seconds], sim_seconds=sim_seconds, wall_seconds=wall_seconds,
-                   realtime_factor=sim_seconds / wall_seconds if wall_seconds > 0 else math.nan)
+        out = self.summary.result(sim_seconds)
+        out.update(wall_seconds=wall_seconds, realtime_factor=sim_seconds / wall_seconds if wall_seconds > 0 else math.nan)
         return out

@@ -21,7 +21,6 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import Footer, Header, Static
 from textual.worker import get_current_worker
 
-from taimill.analysis.theory import critical_ratio
 from taimill.errors import ConfigError
 from taimill.model.params import KINDS
 from taimill.figures.snapshot import save_png
@@ -128,8 +127,8 @@ class MillApp(App):
         p = self.mill.preset
         for view in (self.top_view, self.section_view):
             view.set_jar(p.jar.profile.outline, p.jar.height, self.mill.radius)
-        self.readouts.set_targets({"ratio": self.mill.ratio, "critical_ratio": critical_ratio(
-            p.plate_radius, p.jar.radius, float(self.mill.radius.max()))})
+        # the readout window is (re)started before this with the mill's config and radii
+        self.readouts.set_targets({"ratio": self.mill.ratio, "critical_ratio": self.loop.window.geom.critical_ratio})
 
     # ------------------------------------------------------------------ the worker
     @work(thread=True, exclusive=True, group="simulation")

@@ -1,6 +1,6 @@
 """Figures of a live run over a sliding window of simulated time, from the run's stream
-(taimill.store.sinks), computed by the accumulators of `taimill run`'s summary so the live
-numbers mean what the run summary means (docs/outputs.md).
+(taimill.store.sinks), computed by the run summary's own `Summary` so the live numbers
+mean what the run summary means (docs/outputs.md).
 
 The energy ledger is cumulative from t = 0; a window (or a recording started mid-run)
 counts drive work and dissipation from its own first row (`rebased`), so its energy
@@ -14,14 +14,10 @@ from collections import deque
 
 import numpy as np
 
-from taimill.analysis.events import EventStats
-from taimill.analysis.regime import RegimeFeatures
 from taimill.analysis.rungeometry import RunGeometry
-from taimill.analysis.theory import critical_ratio
-from taimill.store.sinks import Relay
-from taimill.analysis.summary import EnergyLedger
-from taimill.model.mechanisms import STRESS_MIN_UN
+from taimill.analysis.summary import Summary
 from taimill.schema import MECHANISM_COLUMNS
+from taimill.store.sinks import Relay
 
 CUMULATIVE = ("drive_work", "dissipated", *MECHANISM_COLUMNS)
 
@@ -47,9 +43,8 @@ class Rebased(Relay):
 
 class WindowStats:
     """Sink keeping the last `seconds` of simulated time of the stream; `result()` gives
-    the summary figures (docs/outputs.md) over that window from the accumulators `SummarySink` is made of
-    (event statistics, energy ledger, regime features), without the run-only ones
-    (g(r), wall map) whose set-up would cost more than the window itself."""
+    the summary keys (docs/outputs.md) over that window from a `Summary` without the
+    run-only accumulators (all-contacts twin, g(r), wall map, single-ball hit)."""
 
     def __init__(self, seconds: float):
         self.seconds = seconds
@@ -101,21 +96,13 @@ class WindowStats:
             return None
         t1 = float(energy["time"][-1])
         t0 = max(t1 - self.seconds, float(energy["time"][0]))
-        tau = t1 - t0
-        stats, ledger = EventStats(t0, min_un=STRESS_MIN_UN), EnergyLedger(t0)
-        features = RegimeFeatures(self.geom, self.radii, t0) if regime else None
+        summary = Summary(self.geom, self.n_balls, self.radii, t0, whole_run=False, regime=regime)
         events = self._table(self._events, t0, "t_start")
         if events is not None:
-            stats.add(events)
-            if features:
-                features.events(events)
-        frames = self._table(self._frames, t0, "time") if features else None
+            summary.events(events)
+        frames = self._table(self._frames, t0, "time") if regime else None
         if frames is not None:
-            features.frames(frames)
+            summary.frames(frames)
         energy = {k: v[energy["time"] >= t0] for k, v in energy.items()}
-        ledger.add(rebased(energy, {k: energy[k][0] for k in CUMULATIVE}))
-        out = stats.result(tau, self.geom.volume, self.n_balls) | ledger.result(tau)
-        if features:
-            out |= features.result()
-        out["critical_ratio"] = critical_ratio(self.geom.plate_radius, self.geom.jar_radius, self.geom.ball_radius)
-        return out | {"analysis_window": [t0, t1], "sim_seconds": t1}
+        summary.energy(rebased(energy, {k: energy[k][0] for k in CUMULATIVE}))
+        return summary.result(t1)

@@ -1,0 +1,88 @@
+"""One run summary behind its three users (taimill.analysis.summary.Summary): the summary
+sink of a run, `analyse` of a stored run and the TUI's live window. Given the same
+tables of one stored run, whatever two of them both report must be equal bit for bit,
+so a user that computed a key its own way (another window, tau, threshold, ball count)
+fails here."""
+
+import math
+import subprocess
+import sys
+
+import pytest
+
+from taimill.analysis.run import analyse
+from taimill.analysis.summary import SummarySink
+from taimill.model.params import ROOT
+from taimill.store.run import open_run
+from taimill.tui.window import WindowStats
+
+# keys of the analyse report that are no summary keys, and those it nests (flat() unpacks them)
+REPORT_ONLY = ("status", "ratio", "plate_rpm", "sampled_estimator", "g_r", "wall_energy", "units")
+NESTED = ("event_estimator", "all_contacts_estimator", "single_ball_hit")
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    # by the CLI: this module must not start Taichi. 1.2 s puts the analysis start at 0.2 s.
+    out = tmp_path_factory.mktemp("run") / "cy.zarr"
+    subprocess.run([sys.executable, "-m", "taimill", "run", "presets/p4-cy-steel.toml", "--duration", "1.2",
+                    "--seed", "3", "--out", str(out)], cwd=ROOT, check=True, capture_output=True, timeout=600)
+    return open_run(out)
+
+
+def feed(sink, store):
+    """The store's tables to a sink, one block each."""
+    sink.start(store.config, store.n_balls, store.radii)
+    sink.events(store.events)
+    sink.frames(store.frames)
+    sink.energy(store.energy)
+
+
+def flat(q: dict) -> dict:
+    """The analyse report under the summary's key names."""
+    out = {k: v for k, v in q.items() if k not in REPORT_ONLY + NESTED}
+    return q["event_estimator"] | out | {"all_contacts": q["all_contacts_estimator"],
+                                        "single_ball_se": q["single_ball_hit"]["se"]}
+
+
+def same(a, b) -> bool:
+    """Equal, NaN equal to NaN, nested."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b))
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return a == b
+
+
+def assert_shared_equal(a: dict, b: dict, must: set):
+    shared = a.keys() & b.keys()
+    assert must <= shared, must - shared
+    differ = sorted(k for k in shared if not same(a[k], b[k]))
+    assert not differ, {k: (a[k], b[k]) for k in differ}
+
+
+MUST = {"events", "impact_power", "mean_se", "collision_rate_per_ball", "impact_power_density", "dissipated_power",
+        "dissipated_power_persistent", "main_sink", "energy_balance_error", "drive_work", "regime",
+        "regime_criteria", "critical_ratio", "analysis_window"}
+
+
+def test_the_summary_sink_and_analyse_report_the_same_summary(store):
+    t0, t1 = store.analysis_window[0], float(store.frames["time"][-1])
+    sink = SummarySink(t0, t1)
+    feed(sink, store)
+    s = sink.result(t1, 1.0)
+    q = flat(analyse(store).quantities())
+    assert q["analysis_window"] == [t0, t1] and s["wear_hot_spot"]["power_per_area"] > 0
+    assert_shared_equal(s, q, MUST | {"all_contacts", "randomness_index", "wear_hot_spot", "single_ball_se"})
+
+
+def test_the_tui_window_and_analyse_report_the_same_summary(store):
+    window = WindowStats(seconds=100.0)  # longer than the run: its window starts at the first ledger row
+    feed(window, store)
+    w = window.result()
+    t0 = w["analysis_window"][0]
+    q = flat(analyse(store, analysis_start=t0).quantities())
+    assert w["analysis_window"] == q["analysis_window"] and w["events"] > 0
+    assert_shared_equal(w, q, MUST)

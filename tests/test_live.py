@@ -10,7 +10,8 @@ import pytest
 
 from taimill.errors import ConfigError
 from taimill.model.drive import RPM
-from taimill.model.params import ROOT, load_preset
+from taimill.model.files import ROOT
+from taimill.model.preset import load_preset
 from taimill.runs.live import LiveMill, auto_dt
 from taimill.store.sinks import MemorySink
 
@@ -62,7 +63,7 @@ def test_new_time_step_keeps_time_continuous(mill):
     mill.set_speeds(plate_rpm=30, ratio=-1.0)
     assert mill.dt == pytest.approx(dt0, rel=1e-4)  # rounded to t/n
     # … and a change once the slow speeds are reached takes the step of its own top
-    # speeds (params.load_preset's rule): at 40 rpm the shortest contact is at the top
+    # speeds (preset.load_preset's rule): at 40 rpm the shortest contact is at the top
     # speed, 2.3 m/s, 5.6 % longer than the preset's (its minimum near 6 m/s)
     mill.advance(steps=int(0.25 / mill.dt))
     t = mill.time

@@ -16,7 +16,8 @@ from taimill.analysis.theory import pinning_friction
 from taimill.calibration.runs import impact_spec
 from taimill.model import laws as laws_np
 from taimill.model.frame import Ramp
-from taimill.model.params import Friction, load_preset
+from taimill.model.materials import Friction
+from taimill.model.preset import load_preset
 from taimill.model.spec import from_preset
 from taimill.physics import laws
 from taimill.physics.runner import Runner

@@ -40,7 +40,8 @@ import numpy as np
 from taimill.bridge.mesh import TOLERANCE, JarMesh, jar_mesh, write_stl
 from taimill.errors import ConfigError
 from taimill.model import laws as laws_np
-from taimill.model.params import Preset, load_material, max_impact_speed
+from taimill.model.materials import load_material
+from taimill.model.preset import Preset, max_impact_speed
 from taimill.model.spec import from_preset
 from taimill.store.run import plain
 

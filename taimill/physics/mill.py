@@ -4,7 +4,7 @@ import numpy as np
 import taichi as ti
 
 from taimill.model.geometry import PIECE_COLUMNS, piece_bounds
-from taimill.model.params import Friction
+from taimill.model.materials import Friction
 from taimill.model.spec import MillSpec, grid_for, skin_for
 from taimill.physics import state as S
 

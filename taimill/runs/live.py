@@ -6,7 +6,7 @@ Physics of a live change (docs/model.md):
   angles the drive has at the current simulated time, so Ω, w and the jar's angle are
   continuous and the Euler terms Ω̇, ẇ are real. (Ω̇ itself may jump when a change
   interrupts a ramp still in progress: the smoothstep starts from rest in Ω̇.)
-- The automatic time step follows the speeds (`params.max_impact_speed`): it is chosen
+- The automatic time step follows the speeds (`preset.max_impact_speed`): it is chosen
   for the largest speed the new ramp passes through. The kernel computes t = step·dt,
   so a new dt is rounded down to dt' = t/n, n = ⌈t/dt_target⌉, and the step counter set
   to n: simulated time stays continuous to rounding (open contacts keep their onset
@@ -37,7 +37,8 @@ from taimill.errors import ConfigError, SimulationUnstable
 from taimill.model import laws as laws_np
 from taimill.model.drive import Drive
 from taimill.model.frame import Ramp
-from taimill.model.params import KINDS, Preset, load_friction, load_preset, max_impact_speed
+from taimill.model.materials import load_friction
+from taimill.model.preset import KINDS, Preset, load_preset, max_impact_speed
 from taimill.model.ranges import RANGES
 from taimill.model.spec import from_preset
 from taimill.physics.mill import set_friction
@@ -66,7 +67,7 @@ def wrap(angle: float) -> float:
 
 
 def auto_dt(preset: Preset, plate_omega: float, jar_spin: float, fixed: float | None = None) -> float:
-    """The preset's time-step rule (params.load_preset) at speeds Ω, w (rad/s): auto dt,
+    """The preset's time-step rule (preset.load_preset) at speeds Ω, w (rad/s): auto dt,
     or a preset's fixed dt (s) where that is still below it."""
     v = max_impact_speed(plate_omega, jar_spin, preset.plate_radius, preset.jar, preset.gravity)
     dt = min(laws_np.auto_dt((preset.ball_ball, preset.ball_wall), v),

@@ -23,7 +23,7 @@ from textual.worker import get_current_worker
 
 from taimill.analysis.theory import critical_ratio
 from taimill.errors import ConfigError
-from taimill.model.params import KINDS
+from taimill.model.preset import KINDS
 from taimill.figures.snapshot import save_png
 from taimill.tui.controls import Controls
 from taimill.tui.help import HelpScreen

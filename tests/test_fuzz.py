@@ -49,7 +49,7 @@ def stubs():
     import taimill.calibration.runs
     import taimill.cli.record
     import taimill.figures.jars
-    import taimill.model.preset
+    import taimill.model.rules
     import taimill.physics.runner
     import taimill.runs.live
     import taimill.runs.simulation
@@ -65,7 +65,7 @@ def stubs():
                              (taimill.calibration.impacts, "oblique"), (taimill.calibration.fit, "fit_drops"),
                              (taimill.figures.jars, "draw_jar"), (taimill.cli.record.subprocess, "call")):
             mp.setattr(module, name, accepted)
-        mp.setattr(taimill.model.preset, "_auto_dt", lambda bb, bw, v_max: 1e-4 / (1.0 + v_max))
+        mp.setattr(taimill.model.rules, "_auto_dt", lambda bb, bw, v_max: 1e-4 / (1.0 + v_max))
         yield
 
 

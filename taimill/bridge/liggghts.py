@@ -41,7 +41,8 @@ from taimill.bridge.mesh import TOLERANCE, JarMesh, jar_mesh, write_stl
 from taimill.errors import ConfigError
 from taimill.model import laws as laws_np
 from taimill.model.materials import load_material
-from taimill.model.preset import Preset, max_impact_speed
+from taimill.model.preset import Preset
+from taimill.model.rules import max_impact_speed
 from taimill.model.spec import from_preset
 from taimill.store.run import plain
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from taimill.errors import ConfigError
 from taimill.model import laws as laws_np
+from taimill.model import rules
 from taimill.model.jars import Jar
 from taimill.model.materials import Balls, contact_table, load_friction, load_material
 from taimill.model.tables import Table
@@ -82,10 +83,7 @@ def contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source, 
     t.get("ball_radius_mm", lo=0, lo_open=True, hi=1000)
     law = law or t.get("law", kind=str, allowed=laws_np.NAMES)
     t.used.add("law")
-    if ball_mat != balls.material.name:
-        raise ConfigError(source, "balls.material", balls.material.name, f"the pair's contact set '{contact}' is for {ball_mat} balls")
-    if wall_mat != jar.wall_material:
-        raise ConfigError(source, "jar", jar.name, f"wall material {jar.wall_material}; the pair's contact set '{contact}' is for {wall_mat} walls")
+    rules.contact_set_fits(source, contact, ball_mat, wall_mat, balls, jar)
     bm, wm = balls.material, load_material(wall_mat, file)
     r, m = balls.radius, balls.mass
     k_bb = laws_np.hertz_stiffness(bm.youngs_modulus, bm.poisson, bm.youngs_modulus, bm.poisson, r, r)

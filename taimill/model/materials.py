@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from taimill.errors import ConfigError
-from taimill.model import files
+from taimill.model import files, rules
 from taimill.model.ranges import RANGES
 from taimill.model.tables import Table, read_toml
 
@@ -136,8 +136,7 @@ def read_friction(t: "Table", name: str, base: Friction | None = None) -> Fricti
     d_mu_s, d_mu_d, d_vs, d_vd = required if base is None else (base.mu_s, base.mu_d, base.v_s * 1e3, base.v_d * 1e3)
     mu_s = t.get("mu_s", d_mu_s, **RANGES["mu_s"].bounds)
     mu_d = t.get("mu_d", d_mu_d, **RANGES["mu_d"].bounds)
-    if mu_d > mu_s:
-        raise ConfigError(t.where("mu_d"), t.key("mu_d"), mu_d, f"dynamic friction must not exceed static mu_s = {mu_s:g}; allowed range [0, {mu_s:g}]")
+    rules.friction_order(t.where("mu_d"), t.key("mu_d"), mu_s, mu_d)
     v_s = t.get("v_s_mm_s", d_vs, lo=0, lo_open=True, hi=1e4) * 1e-3
     v_d = t.get("v_d_mm_s", d_vd, lo=0, lo_open=True, hi=1e5) * 1e-3
     if v_d <= v_s:

@@ -7,7 +7,6 @@ in the key name; everything here is SI (m, kg, s, rad/s).
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,6 +16,7 @@ import numpy as np
 from taimill.errors import ConfigError
 from taimill.model import files
 from taimill.model import laws as laws_np
+from taimill.model import rules
 from taimill.model.contact_sets import NormalLaw, contact_laws
 from taimill.model.drive import Drive
 from taimill.model.jars import Jar, load_jar
@@ -25,8 +25,7 @@ from taimill.model.positions import load_positions
 from taimill.model.ranges import RANGES
 from taimill.model.tables import Table, read_toml
 
-GRAVITY = 9.81
-MAX_STEPS = 1e10  #: time steps of one run; more would take years of wall time
+GRAVITY = 9.81  #: m/s²
 
 # Contact kinds a preset may give its own friction pair and tuning (a coated jar: ball-wall only).
 KINDS = ("ball_ball", "ball_wall")
@@ -77,25 +76,11 @@ class Preset:
         return d | self.drive.as_dict()
 
 
-@functools.lru_cache(maxsize=256)
-def _auto_dt(ball_ball: NormalLaw, ball_wall: NormalLaw, v_max: float) -> float:
-    """laws.auto_dt, once per process for a pair of laws and a speed (it simulates impacts)."""
-    return laws_np.auto_dt((ball_ball, ball_wall), v_max)
-
-
-def max_impact_speed(plate_omega, jar_spin, plate_radius, jar: Jar, gravity=GRAVITY) -> float:
-    """Upper estimate of contact speeds (m/s), for the automatic time step: the jar's
-    ground speed plus its wall speed plus a free fall across the jar."""
-    return abs(plate_omega) * plate_radius + abs(jar_spin) * jar.radius + math.sqrt(2 * gravity * 2 * jar.radius) + 0.5
-
-
 def load_preset(path, overrides: dict | None = None) -> Preset:
     """Read and validate a preset. `overrides` maps preset keys to values given on the
     command line (e.g. {"ratio": -3.0, "balls.count": 24}); they win over the file."""
     overrides = overrides or {}
-    if overrides.get("ratio") is not None and overrides.get("jar_rpm") is not None:
-        raise ConfigError("command line", "--jar-rpm", overrides["jar_rpm"],
-                          f"give either --ratio ({overrides['ratio']!r}) or --jar-rpm, not both")
+    rules.one_jar_speed("command line", overrides.get("ratio"), overrides.get("jar_rpm"), options=True)
     files.check_path_text(str(path) if isinstance(path, Path) else path, "command line", "preset", "a preset file")
     path = Path(path)
     data = read_toml(path, "preset", "command line")
@@ -144,8 +129,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
         r = RANGES["plate_rpm"]
         raise ConfigError(t.where("plate_rpm"), "plate_rpm", plate_rpm, f"allowed range [{r.lo:g}, 0) or (0, {r.hi:g}] {r.unit}: "
                           "the speed ratio K = ω/Ω + 1 is undefined for a plate at rest")
-    if t.has("ratio") and t.has("jar_rpm"):
-        raise ConfigError(t.where("jar_rpm"), "jar_rpm", data["jar_rpm"], "give either ratio or jar_rpm, not both")
+    rules.one_jar_speed(t.where("jar_rpm"), data.get("ratio"), data.get("jar_rpm"))
     jar_key = "jar_rpm" if t.has("jar_rpm") else "ratio"
     jar_speed = t.get(jar_key, **RANGES[jar_key].bounds)
     plate_radius = t.get("plate_radius_mm", 125.0, lo=0, lo_open=True, hi=2000) * 1e-3
@@ -162,23 +146,10 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     gravity = t.get("gravity", GRAVITY, lo=0, hi=1000)
     seed = t.get("seed", 0, kind=int, lo=0, hi=2**63 - 1)
 
-    v_max = max_impact_speed(drive.plate_omega, drive.jar_spin, plate_radius, jar, gravity)
-    dt_auto = min(_auto_dt(ball_ball, ball_wall, v_max),
-                  laws_np.rolling_dt((friction, wall_friction or friction), balls.inertia, balls.radius, math.inf))
-    dt_raw = t.data.get("dt", "auto")
+    v_max = rules.max_impact_speed(drive.plate_omega, drive.jar_spin, plate_radius, jar, gravity)
+    dt_auto = rules.auto_dt(ball_ball, ball_wall, (friction, wall_friction or friction), balls, v_max)
     t.used.add("dt")
-    if dt_raw == "auto":
-        dt, is_auto = dt_auto, True
-    else:
-        dt_limit = dt_auto * laws_np.STEPS_PER_CONTACT / 10.0  # ≥ 10 steps per contact
-        if isinstance(dt_raw, bool) or not isinstance(dt_raw, (int, float)) or not 0 < dt_raw <= dt_limit:
-            raise ConfigError(t.where("dt"), "dt", dt_raw, f"'auto' or a time step in (0, {dt_limit:.3g}] s (10 steps per contact at {v_max:.1f} m/s)")
-        dt, is_auto = float(dt_raw), False
-        dt_min = min(dt_auto, duration / MAX_STEPS)
-        if dt < dt_min:
-            raise ConfigError(t.where("dt"), "dt", dt_raw, f"'auto' or a time step in [{dt_min:.3g}, {dt_limit:.3g}] s: "
-                              f"{duration / dt:.3g} steps for duration = {duration:g} s, at most {MAX_STEPS:.0e} "
-                              "(smaller than the automatic step only while it runs in reasonable time)")
+    dt, is_auto = rules.time_step(t.where("dt"), t.data.get("dt", "auto"), dt_auto, v_max, duration)
 
     out = t.table("outputs", required=False, known=OUTPUTS_KEYS)
     rate = 100.0
@@ -203,9 +174,8 @@ def _kind_friction(t: Table, kind: str, friction: Friction, contact: str, path: 
         name = t.get(key, kind=str)
         base = Path.cwd() if t.where(key) == "command line" else pair_base
         friction, own = load_friction(name, t.where(key), key, base)
-        if own != contact:
-            raise ConfigError(t.where(key), key, name, f"is for the '{own}' contact set; `pair` uses '{contact}' "
-                              "(the normal laws come from `pair`; pick a pair of the same contact set)")
+        rules.same_contact_set(t.where(key), key, name, own, contact, "`pair` uses",
+                               " (the normal laws come from `pair`; pick a pair of the same contact set)")
     ft = t.table(f"friction_{kind}", required=False, known=FRICTION_KEYS)
     if ft is not None:
         friction = read_friction(ft, f"{friction.name} ({kind.replace('_', '-')}, tuned)", friction)

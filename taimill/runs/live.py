@@ -11,8 +11,9 @@ Physics of a live change (docs/model.md):
   so a new dt is rounded down to dt' = t/n, n = ⌈t/dt_target⌉, and the step counter set
   to n: simulated time stays continuous to rounding (open contacts keep their onset
   times, ramps their t0).
-- Friction is field data the next step reads (`mill.set_friction`). The rules a change
-  must keep are those of the preset loader (`taimill.model.rules`).
+- Drive ramps, time step and friction are field data the next step reads, written by
+  the setters of `taimill.physics.mill`; the rules a change must keep are those of the
+  preset loader (`taimill.model.rules`).
 - Reset and a new jar or ball count restart the mill at t = 0 from the seeded placement,
   ramping from rest to the current speeds (a new charge cannot continue the old one).
 
@@ -42,7 +43,7 @@ from taimill.model.materials import load_friction
 from taimill.model.preset import KINDS, Preset, load_preset
 from taimill.model.ranges import RANGES
 from taimill.model.spec import from_preset
-from taimill.physics.mill import set_friction
+from taimill.physics.mill import set_clock, set_drive, set_friction
 from taimill.physics.runner import Runner
 from taimill.store.sinks import FanOut
 
@@ -277,8 +278,7 @@ class LiveMill:
             d = self.drive(t)
             self.plate = Ramp(t, d["plate"], om, T, wrap(d["plate_angle"]))
             self.jar = Ramp(t, d["jar"], w, T, wrap(d["jar_angle"]))
-            self.F.plate_ramp[0] = self.plate.as_tuple()
-            self.F.jar_ramp[0] = self.jar.as_tuple()
+            set_drive(self.F, 0, self.plate, self.jar)
             self.runner.specs[0] = self.spec.replace(plate=self.plate, jar=self.jar)
             self.preset = dataclasses.replace(self.preset, drive=new)
             self._set_dt(dt)
@@ -299,9 +299,7 @@ class LiveMill:
         n = math.ceil(t / dt_target * (1 - 1e-12)) if t > 0 else 0
         dt = t / n if n else dt_target
         every = max(1, int(round(1.0 / (self.preset.trajectory_rate * dt))))
-        self.F.dt[0] = dt
-        self.F.step[0] = n
-        self.F.frame_every[0] = every
+        set_clock(self.F, 0, dt, n, every)
         self.runner.specs[0] = self.spec.replace(dt=dt, frame_every=every)
         self.preset = dataclasses.replace(self.preset, dt=dt)
 

@@ -150,7 +150,7 @@ def peak_rss_mib() -> float:
 
 def work_reference(task: dict) -> dict:
     """The reference preset (`copies` mills), timed after a short compiling run."""
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
     from taimill.model.spec import from_preset
     from taimill.physics.runner import Runner
     from taimill.runs.simulation import run
@@ -223,7 +223,7 @@ def launch_steps(engine) -> int:
 def work_scaling(task: dict) -> dict:
     """Cost per step of one mill of N balls: windows of steps from a fresh placement
     (or from a settled bed) until task["seconds"] of wall time are timed."""
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
     from taimill.model.spec import from_preset
     from taimill.physics.runner import Runner
 
@@ -260,7 +260,7 @@ def work_recording(task: dict) -> dict:
     first-use costs: lazy imports — rerun's first Points3D imports pandas, ≈ 0.7 s —
     colour tables, codecs; reported as `warm_wall`). The timed run includes the sink's
     finish (flushing its file)."""
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
     from taimill.runs.simulation import run
     from taimill.recording.sink import RerunSink
     from taimill.store.sinks import NullSink
@@ -310,7 +310,7 @@ def work_sweep(task: dict) -> dict:
 def work_batch(task: dict) -> dict:
     """B copies of the reference mill as one sweep chunk (one Runner, one thread), timed
     after a short compiling chunk of the same B."""
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
     from taimill.physics.runner import init_taichi
     from taimill.runs.executors import Job, run_chunk
 
@@ -326,7 +326,7 @@ def work_batch(task: dict) -> dict:
 
 def work_preset(task: dict) -> dict:
     """One preset through run() into a NullSink on one thread, after a compiling run."""
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
     from taimill.runs.simulation import run
     from taimill.store.sinks import NullSink
 
@@ -344,7 +344,7 @@ def work_trajectory(task: dict) -> dict:
     one thread, after a compiling run at the same rate (which sizes the same buffers)."""
     import dataclasses
 
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
     from taimill.runs.simulation import run
     from taimill.store.run import ZarrSink
 
@@ -657,7 +657,7 @@ SMALL_MILL_BALLS = 100
 def presets_section(duration: float) -> list[dict]:
     """Every preset through run() on one thread: simulated s per CPU s (the per-core
     figure, robust to a busy machine) and per wall s."""
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
 
     # small mills only: the bead presets (10³-10⁴ balls, dt < 0.3 µs, hours per 24 s)
     # are large-N cases, section 5's business
@@ -833,7 +833,7 @@ def work_dense(task: dict) -> dict:
     then task["steps"] steps timed, drained as Runner.launch does; with task["settle"],
     that many steps more untimed and task["steps"] timed again (result "settled")."""
     from taimill.model.frame import Ramp
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
     from taimill.model.spec import from_preset
     from taimill.physics.runner import Runner
 
@@ -864,7 +864,7 @@ def work_liggghts(task: dict) -> dict:
     import resource
 
     from taimill.bridge.liggghts import export_case
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
 
     case = Path(task["dir"])
     export_case(load_preset(task["preset"]), case)

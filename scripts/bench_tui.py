@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def in_process(preset: Path, seconds: float) -> dict:
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
     from taimill.runs.live import LiveMill
     from taimill.tui.app import MillApp
 

@@ -152,7 +152,7 @@ def main(argv=None) -> int:
     from taimill.analysis.compare import compare
     from taimill.bridge.dumps import import_case
     from taimill.bridge.liggghts import export_case
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
 
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -47,7 +47,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from taimill.model.params import load_jar  # noqa: E402
+from taimill.model.jars import load_jar  # noqa: E402
 from taimill.runs.sweep import Request, execute, parse_values, plan, run_sweep  # noqa: E402
 from taimill.analysis.sweep import group_mean, parabolic_peak, regime_fractions  # noqa: E402
 from taimill.store.sweep import SweepStore, open_sweep  # noqa: E402

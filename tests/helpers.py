@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from taimill.model.params import NormalLaw, pair_contact
+from taimill.model.contact_sets import NormalLaw, pair_contact
 from taimill.model import laws as laws_np
 from taimill.calibration import runs as calibration
 from taimill.calibration.runs import run_spec, two_sphere_spec

@@ -16,7 +16,8 @@ from taimill.analysis.sampled import SampledStats
 from taimill.analysis.spatial import RadialDensity, WallMap, contact_map
 from taimill.analysis.theory import critical_ratio, single_ball_hit
 from taimill.errors import ConfigError
-from taimill.model.params import ROOT, load_preset
+from taimill.model.files import ROOT
+from taimill.model.preset import load_preset
 from taimill.schema import EVENT_COLUMNS
 from taimill.store.run import open_run
 

@@ -801,7 +801,7 @@ def test_the_real_cli_prints_the_same_one_line(base, name):
 # ------------------------------------------------------------------ unit tests of the conventions
 def test_unknown_key_suggests_the_nearest_known_one(tmp_path):
     from taimill.errors import ConfigError
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
 
     p = tmp_path / "p.toml"
     p.write_text(_edit(GOOD_PRESET, "duration = 1.0", "duraton = 3"))

@@ -22,7 +22,8 @@ from taimill.calibration.impacts import oblique
 from taimill.calibration.optimise import brent
 from taimill.cli import main
 from taimill.errors import ConfigError
-from taimill.model.params import load_preset, pair_contact
+from taimill.model.contact_sets import pair_contact
+from taimill.model.preset import load_preset
 from taimill.model import laws as laws_np
 from taimill.calibration.runs import drop_test, drop_tests
 from taimill.runs.simulation import run
@@ -252,7 +253,7 @@ def test_sensitivity_pm50_table_thesis_fig_2_5(tmp_path, capsys):
     ref = rows["reference", 1.0]
     assert ref["e"] == pytest.approx(0.52, abs=0.03)  # thesis: 0.516 at h0 = 500 mm
     # Each row is a real drop with that one parameter changed: the same drops through
-    # the contact-set override (params.pair_contact) give the same rebound.
+    # the contact-set override (contact_sets.pair_contact) give the same rebound.
     for (p, key, base), f in ((("d", "d_mm", 0.211), 1.5), (("c", "c_max_Ns_per_mm", 17.5), 0.5)):
         alone = drop_test("steel-steel", 0.5, contact={"ball_wall": {key: base * f}})
         assert rows[p, f]["rebound_height"] == pytest.approx(alone["rebound_height"], rel=1e-9)

@@ -15,7 +15,7 @@ from helpers import numbers_without_unit
 from taimill.cli import main
 from taimill.cli.catalog import first_sentence
 from taimill.cli.run import _run_with_bar
-from taimill.model.params import load_preset
+from taimill.model.preset import load_preset
 from taimill.schema import SUMMARY_UNITS, units_of
 from taimill.store.run import open_run
 

@@ -5,7 +5,8 @@ import pytest
 
 from helpers import FRICTIONLESS, elastic, steel
 from taimill.model.geometry import build_profile
-from taimill.model.params import Friction, load_preset
+from taimill.model.materials import Friction
+from taimill.model.preset import load_preset
 from taimill.calibration.runs import impact_spec
 from taimill.model.frame import Ramp
 from taimill.model.spec import from_preset

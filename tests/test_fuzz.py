@@ -23,7 +23,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from taimill.errors import ConfigError
-from taimill.model.params import BALLS_KEYS, FRICTION_KEYS, JAR_KEYS, NORMAL_LAW_KEYS, PRESET_KEYS
+from taimill.model.materials import FRICTION_KEYS
+from taimill.model.jars import JAR_KEYS
+from taimill.model.contact_sets import NORMAL_LAW_KEYS
+from taimill.model.preset import BALLS_KEYS, PRESET_KEYS
 
 ROOT = Path(__file__).resolve().parent.parent
 PRESET = str(ROOT / "presets" / "p4-cy-steel.toml")
@@ -46,7 +49,7 @@ def stubs():
     import taimill.calibration.runs
     import taimill.cli.record
     import taimill.figures.jars
-    import taimill.model.params
+    import taimill.model.rules
     import taimill.physics.runner
     import taimill.runs.live
     import taimill.runs.simulation
@@ -62,7 +65,7 @@ def stubs():
                              (taimill.calibration.impacts, "oblique"), (taimill.calibration.fit, "fit_drops"),
                              (taimill.figures.jars, "draw_jar"), (taimill.cli.record.subprocess, "call")):
             mp.setattr(module, name, accepted)
-        mp.setattr(taimill.model.params, "_auto_dt", lambda bb, bw, v_max: 1e-4 / (1.0 + v_max))
+        mp.setattr(taimill.model.rules, "_auto_dt", lambda bb, bw, v_max: 1e-4 / (1.0 + v_max))
         yield
 
 
@@ -140,7 +143,7 @@ PRESET_PATHS = list(PRESET_KEYS) + [f"balls.{k}" for k in BALLS_KEYS] + [f"frict
 @fuzz(150)
 @given(preset=mutated(PRESET_BASE, PRESET_PATHS))
 def test_preset_contents_are_accepted_or_refused(stubs, where, preset):
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
 
     path = where / "preset.toml"
     path.write_text(toml_text(preset))
@@ -163,7 +166,7 @@ primitive = st.one_of(
 @given(jar=st.one_of(st.just(JAR_BASE), mutated(JAR_BASE, list(JAR_KEYS), edits=1)), extra=st.lists(primitive, max_size=2),
        fillet=st.floats(0, 20))
 def test_jar_files_are_accepted_or_refused(stubs, where, jar, extra, fillet):
-    from taimill.model.params import load_jar
+    from taimill.model.jars import load_jar
 
     jar = json.loads(json.dumps(jar))
     if isinstance(jar.get("profile"), list):
@@ -192,7 +195,7 @@ def pair_edits():
 @fuzz(120)
 @given(case=pair_edits())
 def test_pair_files_are_accepted_or_refused(stubs, where, case):
-    from taimill.model.params import pair_contact
+    from taimill.model.contact_sets import pair_contact
 
     pair, laws = case
     contact = pair.get("contact", {}).get("mine") if isinstance(pair.get("contact"), dict) else None
@@ -213,7 +216,9 @@ def test_pair_files_are_accepted_or_refused(stubs, where, case):
 @fuzz(60)
 @given(data=st.one_of(st.binary(max_size=200), st.text(max_size=200).map(str.encode)))
 def test_any_bytes_as_preset_jar_or_pair_file_are_accepted_or_refused(stubs, where, data):
-    from taimill.model.params import load_jar, load_preset, pair_contact
+    from taimill.model.jars import load_jar
+    from taimill.model.contact_sets import pair_contact
+    from taimill.model.preset import load_preset
 
     path = where / "raw.toml"
     path.write_bytes(data)

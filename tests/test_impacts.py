@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from helpers import FRICTIONLESS, dt_for, elastic, steel, two_ball_impact
-from taimill.model.params import Friction, NormalLaw, pair_contact
+from taimill.model.materials import Friction
+from taimill.model.contact_sets import NormalLaw, pair_contact
 from taimill.model import laws as laws_np
 from taimill.model.contact.registry import CONSTANT_E_LAWS
 from taimill.calibration.runs import drop_test, impact_spec, run_spec

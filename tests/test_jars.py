@@ -8,7 +8,9 @@ import taichi as ti
 from matplotlib.path import Path as PolyPath
 
 from taimill.model.geometry import profile_sdf
-from taimill.model.params import Friction, jar_names, load_jar, load_preset
+from taimill.model.materials import Friction
+from taimill.model.jars import jar_names, load_jar
+from taimill.model.preset import load_preset
 from taimill.physics import walls
 from taimill.model.frame import Ramp
 from taimill.model.spec import from_preset

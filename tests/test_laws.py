@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 import taichi as ti
 
-from taimill.model.params import load_preset, pair_contact
+from taimill.model.contact_sets import pair_contact
+from taimill.model.preset import load_preset
 from taimill.physics import laws
 from taimill.model import laws as laws_np
 from taimill.model.contact import registry, tangential

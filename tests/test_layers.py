@@ -2,7 +2,10 @@
 (no import is executed). Each package may import only the packages listed for it in
 LAYERS; only `physics` imports taichi and only `figures` (and the recording, for
 colour maps) import matplotlib; no module imports itself through a cycle; the TUI reaches the
-simulation only through the live mill's public API. A failure names the import.
+simulation only through the live mill's public API; only `physics` writes Taichi fields
+(everything else changes a mill through the setters of `taimill.physics.mill`); the
+rules of the rule book (`taimill.model.rules`) are stated nowhere else. A failure names
+the import, the write or the rule.
 Every import counts, also one inside a function: a lazy import is still a dependency.
 """
 
@@ -98,6 +101,46 @@ def private_attributes(path: Path) -> list[tuple[str, int]]:
     return bad
 
 
+# Names an engine's fields object goes by (`engine.F`, `self.F`, a local `F`, `fields`).
+FIELDS_NAMES = {"F", "fields"}
+# Methods of a Taichi field that write it.
+FIELD_WRITERS = {"fill", "from_numpy", "from_torch", "from_paddle", "copy_from"}
+
+
+def is_fields(node) -> bool:
+    """`F`, `fields`, or any `x.F` / `x.fields`: an engine's fields object."""
+    return (isinstance(node, ast.Name) and node.id in FIELDS_NAMES) or (
+        isinstance(node, ast.Attribute) and node.attr in FIELDS_NAMES)
+
+
+def field_writes(path: Path) -> list[tuple[str, int]]:
+    """Writes to a Taichi field: `F.name[...] = …` (also augmented, or in a tuple of
+    targets) and `F.name.fill(…)` / `.from_numpy(…)` … on an engine's fields object."""
+    def targets(node):
+        if isinstance(node, (ast.Tuple, ast.List)):
+            for elt in node.elts:
+                yield from targets(elt)
+        elif isinstance(node, ast.Starred):
+            yield from targets(node.value)
+        else:
+            yield node
+
+    bad = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Assign):
+            written = [x for tgt in node.targets for x in targets(tgt)]
+        elif isinstance(node, (ast.AugAssign, ast.AnnAssign)):
+            written = list(targets(node.target))
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in FIELD_WRITERS:
+            written = [node.func]
+        else:
+            continue
+        for x in written:
+            if isinstance(x, (ast.Subscript, ast.Attribute)) and isinstance(x.value, ast.Attribute) and is_fields(x.value.value):
+                bad.append((ast.unparse(x), node.lineno))
+    return bad
+
+
 def violations(root: Path) -> list[str]:
     graph = import_graph(root)
     found = []
@@ -121,6 +164,10 @@ def violations(root: Path) -> list[str]:
                 found += [f"{mod}:{line} imports private {TUI_GATE}.{n}" for n in names if n.startswith("_")]
     for path in sorted((root / "tui").glob("*.py")):
         found += [f"{module_name(path, root)}:{line} reaches into {expr}" for expr, line in private_attributes(path)]
+    for path in sorted(root.rglob("*.py")):
+        if layer_of(module_name(path, root)) != "physics":
+            found += [f"{module_name(path, root)}:{line} writes the Taichi field {expr} (only physics may: "
+                      "taimill.physics.mill has the setters)" for expr, line in field_writes(path)]
     found += [f"import cycle: {' -> '.join(c)}" for c in cycles(graph)]
     return found
 
@@ -170,6 +217,10 @@ def test_the_package_keeps_its_layers():
     ("tui/controls.py", "from taimill.runs.sweep import plan", "the TUI uses only taimill.runs.live"),
     ("tui/app.py", "x = self.mill._lock", "reaches into self.mill._lock"),
     ("model/frame.py", "from taimill.model import spec", "import cycle: * taimill.model.frame -> "),
+    ("runs/live.py", "self.F.dt[0] = 1e-6", "taimill.runs.live:{n} writes the Taichi field self.F.dt[0]"),
+    ("runs/simulation.py", "runner.engine.F.step[b] += 1", "writes the Taichi field runner.engine.F.step[b]"),
+    ("tui/app.py", "a, F.mu_s[0, 1] = 1, 0.2", "writes the Taichi field F.mu_s[0, 1]"),
+    ("store/run.py", "fields.x.from_numpy(x)", "writes the Taichi field fields.x.from_numpy"),
 ])
 def test_a_planted_bad_import_is_named(tmp_path, file, line, expected):
     root = tmp_path / "taimill"
@@ -180,6 +231,60 @@ def test_a_planted_bad_import_is_named(tmp_path, file, line, expected):
     found = violations(root)
     parts = expected.format(n=n).split("*")
     assert any(all(part.strip() in v for part in parts) for v in found), found
+
+
+# Phrases of the rule book's messages (taimill.model.rules): a ConfigError elsewhere that
+# says one of them restates a rule, which then can drift from the rule book's.
+RULE_BOOK = "taimill.model.rules"
+RULE_PHRASES = ("not both", "must not exceed static", "contact set", "steps per contact")
+# The time-step rule's parts in taimill.model.laws, which only the rule book combines.
+TIME_STEP_PARTS = ("auto_dt", "rolling_dt")
+
+
+def config_error_texts(path: Path) -> list[tuple[str, int]]:
+    """The literal text of every ConfigError(...) a file raises (f-strings: their literal parts)."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Call) and getattr(node.func, "id", getattr(node.func, "attr", None)) == "ConfigError":
+            text = " ".join(c.value for arg in node.args for c in ast.walk(arg)
+                            if isinstance(c, ast.Constant) and isinstance(c.value, str))
+            out.append((text, node.lineno))
+    return out
+
+
+def time_step_calls(path: Path) -> list[tuple[str, int]]:
+    """Calls of laws.auto_dt / laws.rolling_dt (not of the rule book's own auto_dt)."""
+    return [(node.func.attr, node.lineno) for node in ast.walk(ast.parse(path.read_text()))
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in TIME_STEP_PARTS
+            and not (isinstance(node.func.value, ast.Name) and node.func.value.id == "rules")]
+
+
+def restated_rules(root: Path) -> list[str]:
+    """Rules of the rule book stated again elsewhere: a ConfigError with one of its
+    phrases, or a time step computed from the laws' parts."""
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        mod = module_name(path, root)
+        if mod in (RULE_BOOK, "taimill.model.laws"):
+            continue
+        found += [f"{mod}:{line} states a rule of {RULE_BOOK} ('{phrase}')"
+                  for text, line in config_error_texts(path) for phrase in RULE_PHRASES if phrase in text]
+        found += [f"{mod}:{line} computes a time step with laws.{part} (the time-step rule of {RULE_BOOK})"
+                  for part, line in time_step_calls(path)]
+    return found
+
+
+def test_each_rule_is_stated_once():
+    assert restated_rules(PACKAGE) == []
+    assert len(config_error_texts(PACKAGE / "model" / "rules.py")) >= len(RULE_PHRASES)
+
+
+def test_a_restated_rule_is_named(tmp_path):
+    root = tmp_path / "taimill"
+    shutil.copytree(PACKAGE, root, ignore=shutil.ignore_patterns("__pycache__"))
+    target = root / "runs" / "live.py"
+    target.write_text(target.read_text() + 'raise ConfigError("TUI", "jar_rpm", 1, "give either ratio or jar_rpm, not both")\n')
+    assert any(v.startswith("taimill.runs.live:") and "'not both'" in v for v in restated_rules(root))
 
 
 NUMPY_ONLY_TESTS = ("test_analysis", "test_store", "test_cli", "test_layers", "test_golden")

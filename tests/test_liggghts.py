@@ -21,7 +21,8 @@ from taimill.bridge import dumps
 from taimill.bridge.liggghts import contact_mapping, export_case
 from taimill.bridge.mesh import TOLERANCE, jar_mesh, read_stl
 from taimill.errors import ConfigError
-from taimill.model.params import jar_names, load_jar, load_preset
+from taimill.model.jars import jar_names, load_jar
+from taimill.model.preset import load_preset
 from taimill.model.spec import from_preset
 from taimill.store.run import ZarrSink, open_run
 

@@ -10,8 +10,10 @@ import pytest
 
 from taimill.errors import ConfigError
 from taimill.model.drive import RPM
-from taimill.model.params import ROOT, load_preset
-from taimill.runs.live import LiveMill, auto_dt
+from taimill.model.files import ROOT
+from taimill.model.preset import load_preset
+from taimill.model.rules import running_dt
+from taimill.runs.live import LiveMill
 from taimill.store.sinks import MemorySink
 
 P4 = ROOT / "presets" / "p4-cy-steel.toml"
@@ -62,12 +64,12 @@ def test_new_time_step_keeps_time_continuous(mill):
     mill.set_speeds(plate_rpm=30, ratio=-1.0)
     assert mill.dt == pytest.approx(dt0, rel=1e-4)  # rounded to t/n
     # … and a change once the slow speeds are reached takes the step of its own top
-    # speeds (params.load_preset's rule): at 40 rpm the shortest contact is at the top
+    # speeds (the rule book's time-step rule): at 40 rpm the shortest contact is at the top
     # speed, 2.3 m/s, 5.6 % longer than the preset's (its minimum near 6 m/s)
     mill.advance(steps=int(0.25 / mill.dt))
     t = mill.time
     mill.set_speeds(plate_rpm=40, ratio=-1.0)
-    want = auto_dt(mill.preset, 40 * RPM, -40 * RPM)
+    want = running_dt(mill.preset, 40 * RPM, -40 * RPM)
     # rounded down to t/n, n = ⌈t/dt⌉: within dt/t (< 1e-4 at t = 0.33 s)
     assert want * (1 - 1e-4) < mill.dt <= want
     assert mill.dt / dt0 - 1 > 0.05
@@ -85,7 +87,7 @@ def test_new_time_step_keeps_time_continuous(mill):
     # new top speed (11.6 m/s), i.e. back to about the preset's, still continuous
     t = mill.time
     mill.set_speeds(plate_rpm=400, ratio=-3.5)
-    want = auto_dt(mill.preset, 400 * RPM, -1400 * RPM)
+    want = running_dt(mill.preset, 400 * RPM, -1400 * RPM)
     assert want * (1 - 1e-4) < mill.dt <= want and mill.time == pytest.approx(t, rel=1e-12)
     assert mill.dt == pytest.approx(dt0, rel=0.01)
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from taimill.model.mechanisms import STRESS_MIN_UN
-from taimill.model.params import load_preset
+from taimill.model.preset import load_preset
 from taimill.runs.simulation import run
 from taimill.schema import MECHANISM_CLASSES
 from taimill.store.sinks import MemorySink

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from taimill.model.params import load_preset
+from taimill.model.preset import load_preset
 from taimill.model.spec import from_preset
 from taimill.model.spec import skin_for
 from taimill.physics.runner import Runner

@@ -110,7 +110,8 @@ def test_graphite_bed_rolling_in_place_is_a_rolling_bed_not_a_pinned_ring(tmp_pa
     import subprocess
     import sys
 
-    from taimill.model.params import ROOT, load_preset
+    from taimill.model.files import ROOT
+    from taimill.model.preset import load_preset
     from taimill.runs.sweep import point_values
     from taimill.store.run import open_run
     from taimill.store.sweep import scalars

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from taimill.errors import SimulationUnstable
-from taimill.model.params import load_preset
+from taimill.model.preset import load_preset
 from taimill.model.spec import from_preset
 from taimill.physics.runner import Runner
 from taimill.store.sinks import MemorySink

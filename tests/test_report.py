@@ -15,7 +15,8 @@ from PIL import Image
 
 from taimill.figures.report import FIGURES, SUBSTEPS, draw_energy, draw_trajectories_top, hermite_path
 from taimill.analysis.run import analyse
-from taimill.model.params import ROOT, load_preset
+from taimill.model.files import ROOT
+from taimill.model.preset import load_preset
 from taimill.runs.simulation import run
 from taimill.store.run import committed_rows
 

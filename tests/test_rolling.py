@@ -17,7 +17,8 @@ from taimill.calibration.runs import impact_spec
 from taimill.model.contact import rolling
 from taimill.model.contact.registry import ROLLING
 from taimill.model.frame import Ramp
-from taimill.model.params import Friction, load_preset
+from taimill.model.materials import Friction
+from taimill.model.preset import load_preset
 from taimill.model.spec import from_preset
 from taimill.physics import laws
 from taimill.physics.runner import Runner

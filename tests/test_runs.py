@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from taimill.errors import SimulationUnstable
-from taimill.model.params import load_preset
+from taimill.model.preset import load_preset
 from taimill.runs.simulation import run
 from taimill.store.sinks import FanOut, MemorySink
 from taimill.store.run import ZarrSink, open_run

@@ -12,7 +12,7 @@ import pytest
 
 from taimill.errors import ConfigError
 from taimill.model.overlap import first_overlap, overlapping_pairs
-from taimill.model.params import load_preset
+from taimill.model.preset import load_preset
 from taimill.model.placement import lattice_placement
 from taimill.model.geometry import build_profile
 from taimill.store.run import open_run
@@ -103,7 +103,7 @@ def test_small_media_presets_run_via_the_cli(name, tmp_path):
 def wall_geometry(jar_name, ball_radius):
     from taimill.analysis.rungeometry import RunGeometry
     from taimill.model.frame import Ramp
-    from taimill.model.params import load_jar
+    from taimill.model.jars import load_jar
 
     jar = load_jar(jar_name)
     return RunGeometry(jar.profile, jar.height, ball_radius, 1.0, 10, 0.1, Ramp(0, 0, 0, 1), Ramp(0, 0, 0, 1), 0.0, 1.0)
@@ -183,7 +183,7 @@ def test_writing_a_large_mill_is_one_kernel_launch(monkeypatch):
     # ≈ 1.2 s CPU of a 10⁵-ball set-up), and copied every mill's rows twice
     from taichi.lang import kernel_impl
 
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
     from taimill.model.spec import from_preset
     from taimill.physics.mill import write_mill
     from taimill.physics.runner import Runner

@@ -12,7 +12,7 @@ import pytest
 
 from taimill.analysis.run import analyse
 from taimill.analysis.summary import SummarySink
-from taimill.model.params import ROOT
+from taimill.model.files import ROOT
 from taimill.store.run import open_run
 from taimill.tui.window import WindowStats
 

@@ -75,7 +75,7 @@ def test_a_range_too_long_to_count_is_refused_after_a_taichi_run_too():
     """A Taichi run leaves the CPU flushing subnormals to zero in this process, so
     float("1e-308") then reads 0: the count is checked before STEP = 0 and gives the
     same answer either way (make test's workers run files in any order)."""
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
     from taimill.runs.simulation import run
     from taimill.store.sinks import NullSink
 

@@ -14,7 +14,8 @@ from helpers import numbers_without_unit
 from taimill.analysis.run import analyse
 from taimill.recording import scene
 from taimill.model.drive import RPM
-from taimill.model.params import ROOT, load_preset
+from taimill.model.files import ROOT
+from taimill.model.preset import load_preset
 from taimill.runs.live import LiveMill
 from taimill.store.run import open_run
 from taimill.tui import app as app_module

@@ -42,7 +42,9 @@ from taimill.errors import ConfigError
 from taimill.model import laws as laws_np
 from taimill.model.contact.damping import damping_ratio
 from taimill.model.contact.registry import law_by_name
-from taimill.model.params import Preset, load_material, max_impact_speed
+from taimill.model.materials import load_material
+from taimill.model.preset import Preset
+from taimill.model.rules import max_impact_speed
 from taimill.model.spec import from_preset
 from taimill.store.run import plain
 

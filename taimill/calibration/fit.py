@@ -5,7 +5,7 @@ by the real engine.
 Which law, which parameter: the fit applies to the pair's own normal law unless
 another is named. For `adams-impact` (the thesis' MSC.Adams IMPACT law) it fits the
 depth of full damping `d` (default, as the thesis did) or the damping `c_max`; the
-other laws take their damping from a nominal restitution `e` at u_ref (params /
+other laws take their damping from a nominal restitution `e` at u_ref (contact_sets /
 laws.calibrate_damping), so for them `e` is the parameter. A fitted d or e is
 written to both the ball-ball and the ball-wall table (the thesis used the plate's d
 and e for ball-ball impacts too, §2.2.1); a fitted c_max scales both tables' c_max by
@@ -30,7 +30,9 @@ import numpy as np
 from taimill.calibration.data import DropData
 from taimill.calibration.optimise import brent
 from taimill.errors import ConfigError
-from taimill.model.params import GRAVITY, NormalLaw, load_material, pair_contact
+from taimill.model.materials import load_material
+from taimill.model.contact_sets import NormalLaw, pair_contact
+from taimill.model.preset import GRAVITY
 from taimill.model import laws as laws_np
 from taimill.model.contact.damping import damping_ratio, smoothstep
 from taimill.model.contact.springs import di_maio_stiffness
@@ -79,11 +81,11 @@ class Parameter:
             return dataclasses.replace(self.base, d=x * 1e-3)
         if self.name == "c_max":
             return dataclasses.replace(self.base, c=x * 1e3)
-        e, c = self.e_of_c  # = params' calibrate_damping(e), without a bisection per candidate
+        e, c = self.e_of_c  # = contact_sets' calibrated damping c(e), without a bisection per candidate
         return dataclasses.replace(self.base, c=float(np.exp(np.interp(x, e, np.log(c)))), e=x)
 
     def override(self, x: float) -> dict:
-        """Contact-set override (params.pair_contact) setting the parameter to x."""
+        """Contact-set override (contact_sets.pair_contact) setting the parameter to x."""
         scale = (self.ratio, 1.0) if self.name == "c_max" else (1.0, 1.0)
         return {table: {self.key: float(x) * s} for table, s in zip(("ball_ball", "ball_wall"), scale)}
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from taimill.model.params import NormalLaw, pair_contact
+from taimill.model.contact_sets import NormalLaw, pair_contact
 
 
 def eqs_2_3_2_4(v1n: float, v2n: float, m1: float, m2: float, e: float):

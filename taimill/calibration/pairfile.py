@@ -17,14 +17,14 @@ keys and units of taimill/data/materials.toml, so a preset can say
     ball_ball = { c_max_Ns_per_mm = 0.33, d_mm = 0.105, e = 0.9, u_ref_mm_s = 3300 }
     ball_wall = { c_max_Ns_per_mm = 0.57, d_mm = 0.105, e = 0.9, u_ref_mm_s = 3300 }
 
-params.load_friction reads it; the contact table may also name a built-in set."""
+materials.load_friction reads it; the contact table may also name a built-in set."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
-from taimill.model.params import contact_table, load_friction
+from taimill.model.materials import contact_table, load_friction
 
 
 def _value(v) -> str:
@@ -40,7 +40,7 @@ def _value(v) -> str:
 def write_pair_file(path, pair: str, *, law: str, override: dict, name: str | None = None,
                     comments: list[str] = ()) -> Path:
     """Write `pair`'s friction and contact set, with `override` (contact-table entries,
-    as for params.pair_contact) and normal law `law`, as a pair file named NAME
+    as for contact_sets.pair_contact) and normal law `law`, as a pair file named NAME
     (default "<pair>-fit"). `comments` go on top (what was fitted, to which data)."""
     path = Path(path)
     friction, contact_id = load_friction(pair, "command line", base=Path.cwd())

@@ -10,7 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from taimill.model.params import GRAVITY, Balls, Friction, Jar, NormalLaw, pair_contact
+from taimill.model.materials import Balls, Friction
+from taimill.model.jars import Jar
+from taimill.model.contact_sets import NormalLaw, pair_contact
+from taimill.model.preset import GRAVITY
 from taimill.model import laws as laws_np
 from taimill.model.frame import Ramp
 from taimill.model.spec import MillSpec
@@ -145,7 +148,7 @@ def run_drops(drops: list[Drop]) -> list[dict]:
 
 def drop_tests(pair: str, heights, *, target="plate", radius=None, law=None, contact=None, dt=None) -> list[dict]:
     """Drop tests of a friction pair (name or pair file) from each height in `heights`
-    (m); `contact` overrides contact-set entries (params.pair_contact); dt (s) is one
+    (m); `contact` overrides contact-set entries (contact_sets.pair_contact); dt (s) is one
     value, one per height, or None for the automatic dt. See `drop_result`."""
     ball, jar, bb, bw, friction = pair_contact(pair, radius, law, contact=contact)
     dts = dt if np.ndim(dt) else [dt] * len(heights)

@@ -47,7 +47,7 @@ def _check(value, name, lo, hi, unit, lo_open=True):
 # ------------------------------------------------------------------ drop
 def cmd_drop(a) -> int:
     from taimill.figures.calibration import drop_figure
-    from taimill.model.params import pair_contact
+    from taimill.model.contact_sets import pair_contact
 
     heights = [_check(h, "--h0", 0, MAX_H0_MM, "mm (drop height)") for h in a.h0]
     if a.radius_mm is not None:
@@ -131,7 +131,7 @@ def cmd_sensitivity(a) -> int:
     from taimill.figures.calibration import sensitivity_figure
     from taimill.calibration.impacts import sensitivity
 
-    from taimill.model.params import pair_contact
+    from taimill.model.contact_sets import pair_contact
 
     h0 = _check(a.h0, "--h0", 0, MAX_H0_MM, "mm (drop height)")
     change = _check(a.change, "--change", 0, 99, "% (kept below 100: parameters stay positive)") / 100.0
@@ -176,7 +176,7 @@ def _offsets(text: str) -> list[float]:
 def cmd_oblique(a) -> int:
     from taimill.figures.calibration import oblique_figure
     from taimill.calibration.impacts import oblique
-    from taimill.model.params import pair_contact
+    from taimill.model.contact_sets import pair_contact
 
     ball = pair_contact(a.pair, law=a.law)[0]
     grazing = 2e3 * ball.radius

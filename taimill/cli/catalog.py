@@ -39,7 +39,7 @@ def first_sentence(path) -> str:
 
 
 def cmd_presets(a) -> int:
-    from taimill.model.params import ROOT
+    from taimill.model.files import ROOT
 
     paths = sorted((ROOT / "presets").glob("*.toml"))
     names = [str(p.relative_to(ROOT)) for p in paths]
@@ -57,7 +57,7 @@ def cmd_presets(a) -> int:
 
 def cmd_jars(a) -> int:
     from taimill.figures.jars import draw_jar, jar_row
-    from taimill.model.params import jar_names, load_jar
+    from taimill.model.jars import jar_names, load_jar
 
     if getattr(a, "jar_command", None) == "show":
         from taimill.model.files import check_output

@@ -47,7 +47,7 @@ def _check_out(path: str, overwrite: bool) -> None:
 
 def cmd_export(a) -> int:
     from taimill.bridge.liggghts import contact_mapping, export_case
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
 
     from taimill.bridge.liggghts import MANIFEST
     from taimill.errors import ConfigError

@@ -21,7 +21,7 @@ def register(sub) -> None:
 
 def cmd_run(a) -> int:
     from taimill.errors import SimulationUnstable
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
 
     show_bar = not a.json or sys.stderr.isatty()
     if sys.stderr.isatty():  # reading and checking 10⁵-10⁶ start positions takes seconds (on a

@@ -21,7 +21,7 @@ def register(subparsers):
 def cmd_tui(a) -> int:
     from taimill.cli.common import overrides as _overrides
     from taimill.errors import ConfigError
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
 
     if not 0.1 <= a.window <= 600:
         raise ConfigError("command line", "--window", a.window, "allowed range [0.1, 600] s")

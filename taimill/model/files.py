@@ -18,6 +18,8 @@ from pathlib import Path
 from taimill.errors import ConfigError
 
 MAX_INPUT_BYTES = 64 * 2**20  #: a preset, jar, pair file or measured CSV is far smaller
+PACKAGE = Path(__file__).resolve().parent.parent  #: taimill/, home of the built-in materials
+ROOT = PACKAGE.parent  #: the repository, home of jars/ and presets/
 
 
 def check_path_text(text, source, key, what: str = "a file name") -> str:

@@ -14,7 +14,9 @@ from taimill.model.contact.registry import contact_model
 from taimill.model.frame import Ramp
 from taimill.model.geometry import Profile
 from taimill.model.mechanisms import IMPACT_AGE, STRESS_MIN_UN
-from taimill.model.params import Friction, NormalLaw, Preset
+from taimill.model.materials import Friction
+from taimill.model.contact_sets import NormalLaw
+from taimill.model.preset import Preset
 from taimill.model.placement import random_placement
 
 

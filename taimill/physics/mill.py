@@ -1,10 +1,14 @@
-"""Writes a mill (`taimill.model.spec.MillSpec`) into slot b of an engine's fields."""
+"""Writes a mill (`taimill.model.spec.MillSpec`) into slot b of an engine's fields, and
+changes the parts of a running mill that are field data the next step reads (drive
+ramps, time step and clock, friction): outside `physics`, a mill's fields change only
+through these."""
 
 import numpy as np
 import taichi as ti
 
+from taimill.model.frame import Ramp
 from taimill.model.geometry import PIECE_COLUMNS, piece_bounds
-from taimill.model.params import Friction
+from taimill.model.materials import Friction
 from taimill.model.spec import MillSpec, grid_for, skin_for
 from taimill.physics import state as S
 
@@ -25,8 +29,7 @@ def write_mill(F, b: int, spec: MillSpec):
     F.gravity[b] = spec.gravity
     F.plate_radius[b] = spec.plate_radius
     F.height[b] = spec.height
-    F.plate_ramp[b] = spec.plate.as_tuple()
-    F.jar_ramp[b] = spec.jar.as_tuple()
+    set_drive(F, b, spec.plate, spec.jar)
     F.frame_every[b] = spec.frame_every
     F.turn_trig[b] = (float("inf"), 1.0, 0.0)  # no turn is inf: computed at the first step (NaN would not do: Taichi compares floats ordered)
     F.psi_rec[b] = (float("inf"), 1.0, 0.0)  # no step's: computed at the first step
@@ -66,9 +69,26 @@ def write_mill(F, b: int, spec: MillSpec):
 
 
 def set_friction(F, b: int, fr: Friction, ct: int):
-    """Friction of contact type ct (0 ball-ball, 1 ball-wall) is live-tunable: it is
+    """Friction of contact type ct (0 ball-ball, 1 ball-wall) of mill b: μ_s, μ_d, the
+    slip speeds v_s, v_d (m/s) and the rolling resistance μ_r. Live-tunable: it is
     field data the next step reads."""
     F.mu_s[b, ct], F.mu_d[b, ct], F.v_s[b, ct], F.v_d[b, ct], F.mu_r[b, ct] = fr.mu_s, fr.mu_d, fr.v_s, fr.v_d, fr.mu_r
+
+
+def set_drive(F, b: int, plate: Ramp, jar: Ramp):
+    """The drive of mill b from its ramps' t0 on: the plate speed Ω(t) and the jar's
+    absolute spin w(t) (rad/s, with their angles in rad), which every step evaluates."""
+    F.plate_ramp[b] = plate.as_tuple()
+    F.jar_ramp[b] = jar.as_tuple()
+
+
+def set_clock(F, b: int, dt: float, step: int, frame_every: int):
+    """The time step dt (s) of mill b, its step counter (the kernels' time is t =
+    step·dt, s, so a new dt comes with the step that keeps t) and the steps between
+    trajectory frames (which a new dt changes)."""
+    F.dt[b] = dt
+    F.step[b] = step
+    F.frame_every[b] = frame_every
 
 
 @ti.kernel

@@ -35,7 +35,7 @@ class Job:
     """One sweep point to simulate: its index in the sweep plan and its resolved preset."""
 
     index: int
-    preset: object  #: taimill.model.params.Preset
+    preset: object  #: taimill.model.preset.Preset
 
 
 @dataclass

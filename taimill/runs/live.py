@@ -6,12 +6,14 @@ Physics of a live change (docs/model.md):
   angles the drive has at the current simulated time, so Ω, w and the jar's angle are
   continuous and the Euler terms Ω̇, ẇ are real. (Ω̇ itself may jump when a change
   interrupts a ramp still in progress: the smoothstep starts from rest in Ω̇.)
-- The automatic time step follows the speeds (`params.max_impact_speed`): it is chosen
+- The automatic time step follows the speeds (`rules.running_dt`): it is chosen
   for the largest speed the new ramp passes through. The kernel computes t = step·dt,
   so a new dt is rounded down to dt' = t/n, n = ⌈t/dt_target⌉, and the step counter set
   to n: simulated time stays continuous to rounding (open contacts keep their onset
   times, ramps their t0).
-- Friction is field data the next step reads (`mill.set_friction`).
+- Drive ramps, time step and friction are field data the next step reads, written by
+  the setters of `taimill.physics.mill`; the rules a change must keep are those of the
+  preset loader (`taimill.model.rules`).
 - Reset and a new jar or ball count restart the mill at t = 0 from the seeded placement,
   ramping from rest to the current speeds (a new charge cannot continue the old one).
 
@@ -34,13 +36,14 @@ import time
 import numpy as np
 
 from taimill.errors import ConfigError, SimulationUnstable
-from taimill.model import laws as laws_np
+from taimill.model import rules
 from taimill.model.drive import Drive
 from taimill.model.frame import Ramp
-from taimill.model.params import KINDS, Preset, load_friction, load_preset, max_impact_speed
+from taimill.model.materials import load_friction
+from taimill.model.preset import KINDS, Preset, load_preset
 from taimill.model.ranges import RANGES
 from taimill.model.spec import from_preset
-from taimill.physics.mill import set_friction
+from taimill.physics.mill import set_clock, set_drive, set_friction
 from taimill.physics.runner import Runner
 from taimill.store.sinks import FanOut
 
@@ -63,15 +66,6 @@ def check(key: str, value) -> float:
 def wrap(angle: float) -> float:
     """Angle in [-π, π] (rad): ramps restart from it, so φ stays small after hours."""
     return math.remainder(angle, 2.0 * math.pi)
-
-
-def auto_dt(preset: Preset, plate_omega: float, jar_spin: float, fixed: float | None = None) -> float:
-    """The preset's time-step rule (params.load_preset) at speeds Ω, w (rad/s): auto dt,
-    or a preset's fixed dt (s) where that is still below it."""
-    v = max_impact_speed(plate_omega, jar_spin, preset.plate_radius, preset.jar, preset.gravity)
-    dt = min(laws_np.auto_dt((preset.ball_ball, preset.ball_wall), v),
-             laws_np.rolling_dt(preset.frictions, preset.balls.inertia, preset.balls.radius, math.inf))
-    return dt if fixed is None else min(fixed, dt)
 
 
 class LiveMill:
@@ -274,19 +268,17 @@ class LiveMill:
         plate_rpm: Ω; jar speed as ratio K = w/Ω or jar_rpm ω = w - Ω (relative to the
         plate); with neither, K is kept (ω when Ω was 0). ramp_time (s) defaults to
         the preset's start-up ramp."""
-        if ratio is not None and jar_rpm is not None:
-            raise ConfigError(SOURCE, "jar_rpm", jar_rpm, "give either ratio or jar_rpm, not both")
+        rules.one_jar_speed(SOURCE, ratio, jar_rpm)
         given = {"plate_rpm": plate_rpm, "ratio": ratio, "jar_rpm": jar_rpm, "ramp_time": ramp_time}
         new = self.target.retarget(**{k: check(k, v) for k, v in given.items() if v is not None})
         om, w, T = new.plate_omega, new.jar_spin, new.ramp_time
-        dt = auto_dt(self.preset, self._peak(self.plate, om), self._peak(self.jar, w), self.dt_fixed)
+        dt = rules.running_dt(self.preset, self._peak(self.plate, om), self._peak(self.jar, w), self.dt_fixed)
         with self._locked():
             t = self.time
             d = self.drive(t)
             self.plate = Ramp(t, d["plate"], om, T, wrap(d["plate_angle"]))
             self.jar = Ramp(t, d["jar"], w, T, wrap(d["jar_angle"]))
-            self.F.plate_ramp[0] = self.plate.as_tuple()
-            self.F.jar_ramp[0] = self.jar.as_tuple()
+            set_drive(self.F, 0, self.plate, self.jar)
             self.runner.specs[0] = self.spec.replace(plate=self.plate, jar=self.jar)
             self.preset = dataclasses.replace(self.preset, drive=new)
             self._set_dt(dt)
@@ -307,9 +299,7 @@ class LiveMill:
         n = math.ceil(t / dt_target * (1 - 1e-12)) if t > 0 else 0
         dt = t / n if n else dt_target
         every = max(1, int(round(1.0 / (self.preset.trajectory_rate * dt))))
-        self.F.dt[0] = dt
-        self.F.step[0] = n
-        self.F.frame_every[0] = every
+        set_clock(self.F, 0, dt, n, every)
         self.runner.specs[0] = self.spec.replace(dt=dt, frame_every=every)
         self.preset = dataclasses.replace(self.preset, dt=dt)
 
@@ -324,8 +314,7 @@ class LiveMill:
         if pair is not None:
             base, contact = load_friction(pair, SOURCE)
             _, current = load_friction(self.preset.pair, SOURCE)
-            if contact != current:
-                raise ConfigError(SOURCE, "pair", pair, f"is for the '{contact}' contact set; these balls and jar use '{current}'")
+            rules.same_contact_set(SOURCE, "pair", pair, contact, current, "these balls and jar use")
         new = list(self.frictions)
         for ct, k in enumerate(KINDS):
             if kind not in (None, k):
@@ -334,8 +323,7 @@ class LiveMill:
             s_ = check("mu_s", mu_s) if mu_s is not None else fr.mu_s
             d_ = check("mu_d", mu_d) if mu_d is not None else fr.mu_d
             r_ = check("mu_r", mu_r) if mu_r is not None else fr.mu_r
-            if d_ > s_:
-                raise ConfigError(SOURCE, "mu_d", d_, f"dynamic friction must not exceed static mu_s = {s_:g}; allowed range [0, {s_:g}]")
+            rules.friction_order(SOURCE, "mu_d", s_, d_)
             name = fr.name if (s_, d_, r_) == (fr.mu_s, fr.mu_d, fr.mu_r) else f"{(pair or self.preset.pair)} (tuned)"
             new[ct] = dataclasses.replace(fr, name=name, mu_s=s_, mu_d=d_, mu_r=r_)
         wall = new[1] if new[1] != new[0] else None
@@ -353,7 +341,7 @@ class LiveMill:
         """Back to t = 0: the seeded placement, ramping from rest to the current targets."""
         with self._locked():
             p = self.preset
-            self._start(dataclasses.replace(p, dt=auto_dt(p, p.drive.plate_omega, p.drive.jar_spin, self.dt_fixed)))
+            self._start(dataclasses.replace(p, dt=rules.running_dt(p, p.drive.plate_omega, p.drive.jar_spin, self.dt_fixed)))
 
     def rebuilt(self, *, jar: str | None = None, balls: int | None = None) -> Preset:
         """The preset of a new jar (name in jars/ or path) and/or ball count with the
@@ -367,7 +355,7 @@ class LiveMill:
         except ConfigError as err:
             raise (ConfigError(SOURCE, err.key, err.value, err.allowed) if err.source == "command line" else err) from None
         d = p.drive
-        new = dataclasses.replace(new, drive=d, dt=auto_dt(new, d.plate_omega, d.jar_spin, self.dt_fixed))
+        new = dataclasses.replace(new, drive=d, dt=rules.running_dt(new, d.plate_omega, d.jar_spin, self.dt_fixed))
         if load_friction(new.pair, SOURCE)[1] == load_friction(p.pair, SOURCE)[1]:
             new = dataclasses.replace(new, friction=p.friction, wall_friction=p.wall_friction, pair=p.pair)
         return new

@@ -116,7 +116,7 @@ def plan(req: Request, ratios_for=None) -> list[dict]:
     """Points of the cartesian product in AXES order, replicas innermost, each
     {overrides, values, preset}; every preset is loaded and validated here, before
     any kernel runs. `ratios_for(curve_values) -> list[K]` replaces the K axis (refine)."""
-    from taimill.model.params import load_preset
+    from taimill.model.preset import load_preset
 
     base = load_preset(req.preset, req.overrides)
     seed0 = base.seed
@@ -161,7 +161,7 @@ def friction_label(p) -> str:
     """The pair, plus the coefficients where the run's friction differs from the pair's
     own: ", μ 0.3 μ_r 0.05" (both kinds, or ball-ball), ", wall steel-fluorite" or
     ", wall μ 0.2" (ball-wall)."""
-    from taimill.model.params import load_friction
+    from taimill.model.materials import load_friction
 
     def coefficients(f):
         return f.mu_s, f.mu_d, f.v_s, f.v_d, f.mu_r

@@ -22,7 +22,7 @@ from textual.widgets import Footer, Header, Static
 from textual.worker import get_current_worker
 
 from taimill.errors import ConfigError
-from taimill.model.params import KINDS
+from taimill.model.preset import KINDS
 from taimill.figures.snapshot import save_png
 from taimill.tui.controls import Controls
 from taimill.tui.help import HelpScreen

@@ -23,7 +23,8 @@ from textual.containers import Horizontal, Vertical
 from textual.validation import Integer, Number
 from textual.widgets import Input, Label, Select, Static
 
-from taimill.model.params import MATERIALS_FILE, jar_names
+from taimill.model.materials import MATERIALS_FILE
+from taimill.model.jars import jar_names
 from taimill.runs.live import LIMITS
 from taimill.tui.messages import FrictionRequested, Notice, RebuildRequested, SpeedsRequested
 

@@ -1,0 +1,145 @@
+"""Materials, friction pairs and the ball charge: the built-in table
+(taimill/data/materials.toml), pair files (a pair and its contact set in one file) and
+the frozen dataclasses they load into, in SI units (kg, Pa, m, m/s)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from taimill.errors import ConfigError
+from taimill.model import files, rules
+from taimill.model.ranges import RANGES
+from taimill.model.tables import Table, read_toml
+
+MATERIALS_FILE = files.PACKAGE / "data" / "materials.toml"
+# The keys of each kind of table (unknown keys are errors, reported with the nearest known one)
+FRICTION_KEYS = ("mu_s", "mu_d", "v_s_mm_s", "v_d_mm_s", "mu_r")
+MATERIAL_KEYS = ("density_kg_m3", "youngs_modulus_gpa", "poisson")
+
+
+@dataclass(frozen=True)
+class Material:
+    name: str
+    density: float  #: kg/m³
+    youngs_modulus: float  #: Pa
+    poisson: float  #: -
+
+
+@dataclass(frozen=True)
+class Friction:
+    """Regularised Coulomb friction of thesis eq 3.7, and rolling resistance (a
+    constant torque μ_r R_eff F_n against the relative rolling, taimill.model.laws)."""
+
+    name: str
+    mu_s: float  #: static coefficient
+    mu_d: float  #: dynamic coefficient
+    v_s: float  #: m/s, μ reaches μ_s
+    v_d: float  #: m/s, μ has eased to μ_d
+    mu_r: float = 0.0  #: rolling-resistance coefficient; 0: off (the thesis model)
+
+
+@dataclass(frozen=True)
+class Balls:
+    count: int
+    material: Material
+    radius: float  #: m
+
+    @property
+    def mass(self) -> float:
+        return self.material.density * 4.0 / 3.0 * math.pi * self.radius**3
+
+    @property
+    def inertia(self) -> float:
+        """Moment of inertia of a solid sphere, 2/5 m r², kg·m²."""
+        return 0.4 * self.mass * self.radius**2
+
+
+def _materials_db():
+    return read_toml(MATERIALS_FILE, "materials")
+
+
+def load_material(name: str, source="material") -> Material:
+    db = _materials_db()["material"]
+    if name not in db:
+        raise ConfigError(source, "material", name, f"must be one of {', '.join(db)}")
+    t = Table(db[name], MATERIALS_FILE, f"material.{name}.", known=MATERIAL_KEYS)
+    m = Material(
+        name,
+        t.get("density_kg_m3", lo=0, lo_open=True, hi=30000),
+        t.get("youngs_modulus_gpa", lo=0, lo_open=True, hi=2000) * 1e9,
+        t.get("poisson", lo=-1, lo_open=True, hi=0.5),
+    )
+    t.done()
+    return m
+
+
+def load_friction(name: str, source, key="pair", base: Path | None = None) -> tuple[Friction, str]:
+    """A built-in pair, or a pair file (NAME ending in .toml, relative to `base`):
+    (friction, contact-set id for `contact_laws`)."""
+    files.check_path_text(name, source, key, "a pair name or pair file")
+    if name.endswith(".toml"):
+        return _pair_file(name, source, key, base)
+    db = _materials_db()
+    if name not in db["pair"]:
+        raise ConfigError(source, key, name, f"must be one of {', '.join(db['pair'])}, or a pair file NAME.toml")
+    t = Table(db["pair"][name], MATERIALS_FILE, f"pair.{name}.", known=("contact", *FRICTION_KEYS))
+    contact = t.get("contact", kind=str)
+    friction = read_friction(t, name)
+    t.done()
+    return friction, contact
+
+
+def _pair_file(name: str, source, key, base: Path | None) -> tuple[Friction, str]:
+    """A pair file holds one [pair.NAME] table and the [contact.*] table it uses (same
+    keys and units as materials.toml; materials are the built-in ones). Its contact
+    set's id is "FILE#CONTACT"; a contact name the file lacks is a built-in one."""
+    path = Path(name) if Path(name).is_absolute() or base is None else base / name
+    if files.missing(path):  # a broken link or a name the OS refuses: read_toml says why
+        raise ConfigError(source, key, name, f"no pair file {path}; built-in pairs: {', '.join(_materials_db()['pair'])}")
+    data = read_toml(path, key, source)
+    top = Table(data, path)
+    extra = sorted(set(data) - {"pair", "contact"})
+    if extra:
+        raise top.unknown(extra[0], ("pair", "contact"))
+    pairs = data.get("pair")
+    if not isinstance(pairs, dict) or len(pairs) != 1:
+        raise ConfigError(path, "pair", list(pairs) if isinstance(pairs, dict) else pairs, "a pair file needs exactly one [pair.NAME] table")
+    (pair_name, table), = pairs.items()
+    t = Table(table, path, f"pair.{pair_name}.", known=("contact", *FRICTION_KEYS))
+    contact = t.get("contact", kind=str)
+    friction = read_friction(t, pair_name)
+    t.done()
+    own = data.get("contact", {})
+    if not isinstance(own, dict) or not all(isinstance(v, dict) for v in own.values()):
+        raise ConfigError(path, "contact", own, "[contact.NAME] tables of a normal law (see taimill/data/materials.toml)")
+    if contact not in own and contact not in _materials_db()["contact"]:
+        raise ConfigError(path, f"pair.{pair_name}.contact", contact, f"no [contact.{contact}] table in the file or built in")
+    return friction, f"{path.resolve()}#{contact}" if contact in own else contact
+
+
+def contact_table(contact: str) -> tuple[dict, Path, str]:
+    """(table, file, name) of a contact-set id from `load_friction`."""
+    if "#" in contact:
+        file, name = contact.rsplit("#", 1)
+        return read_toml(Path(file), "pair")["contact"][name], Path(file), name
+    db = _materials_db()["contact"]
+    if contact not in db:
+        raise ConfigError(MATERIALS_FILE, "contact", contact, f"must be one of {', '.join(db)}")
+    return db[contact], MATERIALS_FILE, contact
+
+
+def read_friction(t: "Table", name: str, base: Friction | None = None) -> Friction:
+    """μ_s, μ_d, v_s, v_d from table t, defaulting to `base` (preset overrides)."""
+    required = (...,) * 4  # the sentinel `get` takes for "no default"
+    d_mu_s, d_mu_d, d_vs, d_vd = required if base is None else (base.mu_s, base.mu_d, base.v_s * 1e3, base.v_d * 1e3)
+    mu_s = t.get("mu_s", d_mu_s, **RANGES["mu_s"].bounds)
+    mu_d = t.get("mu_d", d_mu_d, **RANGES["mu_d"].bounds)
+    rules.friction_order(t.where("mu_d"), t.key("mu_d"), mu_s, mu_d)
+    v_s = t.get("v_s_mm_s", d_vs, lo=0, lo_open=True, hi=1e4) * 1e-3
+    v_d = t.get("v_d_mm_s", d_vd, lo=0, lo_open=True, hi=1e5) * 1e-3
+    if v_d <= v_s:
+        raise ConfigError(t.where("v_d_mm_s"), t.key("v_d_mm_s"), v_d * 1e3, f"must exceed v_s_mm_s = {v_s * 1e3:g}")
+    mu_r = t.get("mu_r", 0.0 if base is None else base.mu_r, **RANGES["mu_r"].bounds)
+    return Friction(name, mu_s, mu_d, v_s, v_d, mu_r)

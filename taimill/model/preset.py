@@ -1,0 +1,198 @@
+"""A preset: the fixed parameters of a run as one frozen dataclass in SI units, read
+from its TOML file with the command line's overrides and validated before any kernel
+runs (docs/model.md, faults). Files use mm and rpm where the thesis does, with the unit
+in the key name; everything here is SI (m, kg, s, rad/s).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from taimill.errors import ConfigError
+from taimill.model import files
+from taimill.model import rules
+from taimill.model.contact.registry import NAMES as LAW_NAMES
+from taimill.model.contact_sets import NormalLaw, contact_laws
+from taimill.model.drive import Drive
+from taimill.model.jars import Jar, load_jar
+from taimill.model.materials import FRICTION_KEYS, Balls, Friction, load_friction, load_material, read_friction
+from taimill.model.positions import load_positions
+from taimill.model.ranges import RANGES
+from taimill.model.tables import Table, read_toml
+
+GRAVITY = 9.81  #: m/s²
+
+# Contact kinds a preset may give its own friction pair and tuning (a coated jar: ball-wall only).
+KINDS = ("ball_ball", "ball_wall")
+# The keys of each kind of table (unknown keys are errors, reported with the nearest known one)
+PRESET_KEYS = ("jar", "pair", "plate_rpm", "ratio", "jar_rpm", "duration", "analysis_start", "dt", "seed", "law",
+               "initial_positions", "ramp_time", "plate_radius_mm", "gravity", "balls", "outputs", "friction",
+               *(f"pair_{k}" for k in KINDS), *(f"friction_{k}" for k in KINDS))
+BALLS_KEYS = ("count", "material", "radius_mm")
+OUTPUTS_KEYS = ("trajectory_rate",)
+
+INLINE_POSITIONS = 1000  # balls; a resolved config lists at most this many start positions
+
+
+@dataclass(frozen=True)
+class Preset:
+    source: str
+    jar: Jar
+    balls: Balls
+    pair: str
+    friction: Friction  #: of ball-ball contacts
+    ball_ball: NormalLaw
+    ball_wall: NormalLaw
+    drive: Drive  #: Ω, the jar's spin and the start-up ramp
+    plate_radius: float  #: m, R_p
+    duration: float  #: s
+    analysis_start: float  #: s
+    dt: float  #: s (resolved: auto or given)
+    dt_auto: bool
+    seed: int
+    trajectory_rate: float  #: Hz
+    gravity: float = GRAVITY  #: m/s²
+    initial_positions: np.ndarray | None = field(default=None, compare=False, repr=False)
+    wall_friction: Friction | None = None  #: of ball-wall contacts; None: `friction`
+
+    @property
+    def frictions(self) -> tuple[Friction, Friction]:
+        """(ball-ball, ball-wall) friction, in contact-type order."""
+        return self.friction, self.wall_friction or self.friction
+
+    def as_dict(self) -> dict:
+        """Resolved configuration as plain JSON-able data (for stores and summaries);
+        the drive's speeds are top-level keys in every form (see Drive.as_dict)."""
+        d = dataclasses.asdict(dataclasses.replace(self, initial_positions=None))
+        del d["drive"]
+        x = self.initial_positions
+        if x is not None:  # inline for a few balls; the trajectory's first frame holds them all anyway
+            d["initial_positions"] = x.tolist() if len(x) <= INLINE_POSITIONS else f"{len(x)} ball centres: the trajectory's first frame"
+        return d | self.drive.as_dict()
+
+
+def load_preset(path, overrides: dict | None = None) -> Preset:
+    """Read and validate a preset. `overrides` maps preset keys to values given on the
+    command line (e.g. {"ratio": -3.0, "balls.count": 24}); they win over the file."""
+    overrides = overrides or {}
+    rules.one_jar_speed("command line", overrides.get("ratio"), overrides.get("jar_rpm"), options=True)
+    files.check_path_text(str(path) if isinstance(path, Path) else path, "command line", "preset", "a preset file")
+    path = Path(path)
+    data = read_toml(path, "preset", "command line")
+    source = str(path)
+    Table(data, source, known=PRESET_KEYS)
+    for key, value in overrides.items():
+        if value is None:
+            continue
+        table, _, leaf = key.rpartition(".")
+        target = data.setdefault(table, {}) if table else data
+        if not isinstance(target, dict):
+            raise ConfigError(source, table, target, "must be a table")
+        target[leaf] = value
+        if key in ("ratio", "jar_rpm"):
+            data.pop("jar_rpm" if key == "ratio" else "ratio", None)
+    overridden = frozenset(k for k, v in overrides.items() if v is not None)
+    t = Table(data, source, "", overridden, known=PRESET_KEYS)
+
+    jar = load_jar(t.get("jar", kind=str), t.where("jar"), path.parent)
+    bt = t.table("balls", known=BALLS_KEYS)
+    material = load_material(bt.get("material", kind=str), source)
+    balls = Balls(
+        bt.get("count", kind=int, **RANGES["balls.count"].bounds),
+        material,
+        bt.get("radius_mm", lo=0, lo_open=True, hi=0.5e3 * min(jar.radius, jar.height)) * 1e-3,
+    )
+    bt.done()
+    _check_fill(balls, jar, bt.where("count"), bt.where("radius_mm"), placed=t.has("initial_positions"))
+
+    pair = t.get("pair", kind=str)
+    pair_base = Path.cwd() if t.where("pair") == "command line" else path.parent
+    friction, contact = load_friction(pair, t.where("pair"), base=pair_base)
+    if pair.endswith(".toml"):  # a pair file: its resolved path, valid from any directory
+        pair = str((pair_base / pair).resolve())
+    ft = t.table("friction", required=False, known=FRICTION_KEYS)
+    if ft is not None:  # the pair's friction, tuned by the user
+        friction = read_friction(ft, f"{pair} (tuned)", friction)
+        ft.done()
+    frictions = [_kind_friction(t, kind, friction, contact, path, pair_base) for kind in KINDS]
+    friction, wall_friction = frictions[0], (frictions[1] if frictions[1] != frictions[0] else None)
+    law = t.get("law", None, allowed=LAW_NAMES)
+    ball_ball, ball_wall = contact_laws(contact, law, balls, jar, source)
+
+    plate_rpm = t.get("plate_rpm", **RANGES["plate_rpm"].bounds)
+    if plate_rpm == 0:
+        r = RANGES["plate_rpm"]
+        raise ConfigError(t.where("plate_rpm"), "plate_rpm", plate_rpm, f"allowed range [{r.lo:g}, 0) or (0, {r.hi:g}] {r.unit}: "
+                          "the speed ratio K = ω/Ω + 1 is undefined for a plate at rest")
+    rules.one_jar_speed(t.where("jar_rpm"), data.get("ratio"), data.get("jar_rpm"))
+    jar_key = "jar_rpm" if t.has("jar_rpm") else "ratio"
+    jar_speed = t.get(jar_key, **RANGES[jar_key].bounds)
+    plate_radius = t.get("plate_radius_mm", 125.0, lo=0, lo_open=True, hi=2000) * 1e-3
+
+    duration = t.get("duration", lo=0, lo_open=True, hi=36000)
+    if "duration" in overridden and "analysis_start" not in overridden and data.get("analysis_start", 0) >= duration:
+        # a short run asked for on the command line keeps the thesis' proportion (4 of 24 s)
+        data["analysis_start"] = duration / 6.0
+    analysis_start = t.get("analysis_start", 0.0, lo=0, hi=duration)
+    if analysis_start >= duration:
+        raise ConfigError(source, "analysis_start", analysis_start, f"must be below duration = {duration:g} s")
+    ramp_time = t.get("ramp_time", 1.0, **(RANGES["ramp_time"].bounds | {"hi": duration}))
+    drive = Drive.from_rpm(plate_rpm, **{jar_key: jar_speed}, ramp_time=ramp_time)
+    gravity = t.get("gravity", GRAVITY, lo=0, hi=1000)
+    seed = t.get("seed", 0, kind=int, lo=0, hi=2**63 - 1)
+
+    v_max = rules.max_impact_speed(drive.plate_omega, drive.jar_spin, plate_radius, jar, gravity)
+    dt_auto = rules.auto_dt(ball_ball, ball_wall, (friction, wall_friction or friction), balls, v_max)
+    t.used.add("dt")
+    dt, is_auto = rules.time_step(t.where("dt"), t.data.get("dt", "auto"), dt_auto, v_max, duration)
+
+    out = t.table("outputs", required=False, known=OUTPUTS_KEYS)
+    rate = 100.0
+    if out is not None:
+        rate = out.get("trajectory_rate", 100.0, lo=0, lo_open=True, hi=min(1e5, 0.5 / dt))
+        out.done()
+    init = None
+    if t.has("initial_positions"):
+        init = load_positions(t.get("initial_positions", kind=str), path.parent, balls, jar, source)
+    t.done()
+    return Preset(
+        source, jar, balls, pair, friction, ball_ball, ball_wall, drive, plate_radius,
+        duration, analysis_start, dt, is_auto, seed, rate, gravity, init, wall_friction,
+    )
+
+
+def _kind_friction(t: Table, kind: str, friction: Friction, contact: str, path: Path, pair_base: Path) -> Friction:
+    """Friction of one contact kind: `pair_KIND` (a pair of the same contact set)
+    instead of `pair`, then tuned by `[friction_KIND]`; else the preset's friction."""
+    key = f"pair_{kind}"
+    if t.has(key):
+        name = t.get(key, kind=str)
+        base = Path.cwd() if t.where(key) == "command line" else pair_base
+        friction, own = load_friction(name, t.where(key), key, base)
+        rules.same_contact_set(t.where(key), key, name, own, contact, "`pair` uses",
+                               " (the normal laws come from `pair`; pick a pair of the same contact set)")
+    ft = t.table(f"friction_{kind}", required=False, known=FRICTION_KEYS)
+    if ft is not None:
+        friction = read_friction(ft, f"{friction.name} ({kind.replace('_', '-')}, tuned)", friction)
+        ft.done()
+    return friction
+
+
+def _check_fill(balls: Balls, jar: Jar, source, radius_source, placed=False):
+    """Random loose packing reaches ~0.55; refuse fills that cannot be placed at random
+    (given positions are checked ball by ball instead: a settled bed is denser). A ball
+    larger than the fillets would touch both walls of a corner while the side-wall
+    SDF reports only the nearer: refuse it."""
+    fill = balls.count * 4.0 / 3.0 * math.pi * balls.radius**3 / jar.volume
+    if fill > 0.45 and not placed:
+        raise ConfigError(source, "balls.count", balls.count, f"balls fill {fill:.0%} of the jar; at most 45% can be placed at random")
+    if 2 * balls.radius >= jar.height or balls.radius >= jar.radius:
+        raise ConfigError(radius_source, "balls.radius_mm", balls.radius * 1e3, "balls must fit in the jar")
+    if len(jar.profile.pieces) > 1 and balls.radius > jar.fillet:
+        raise ConfigError(radius_source, "balls.radius_mm", balls.radius * 1e3,
+                          f"allowed range (0, {jar.fillet * 1e3:g}]: jar {jar.name}'s corners are rounded to {jar.fillet * 1e3:g} mm")

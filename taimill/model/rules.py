@@ -1,0 +1,103 @@
+"""The rule book: every rule that ties values of a run together, stated once, for the
+preset loader (and so the command line, whose options are preset overrides) and the
+live mill of the TUI. Each rule is a pure function that returns what it decided or
+raises the ConfigError naming who gave the value (a file, the command line, the TUI),
+the key, the value and what is allowed. The range of a single value is in `ranges`."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+from taimill.errors import ConfigError
+from taimill.model import laws as laws_np
+
+MAX_STEPS = 1e10  #: time steps of one run; more would take years of wall time
+
+
+# ------------------------------------------------------------------ drive
+def one_jar_speed(source, ratio, jar_rpm, *, options: bool = False):
+    """The jar's speed is given as K (`ratio`) or as ω (`jar_rpm`, rpm), not both: each
+    alone fixes its spin w. None: not given; options: both came as the command-line
+    options --ratio / --jar-rpm (the message names them so)."""
+    if ratio is None or jar_rpm is None:
+        return
+    if options:
+        raise ConfigError(source, "--jar-rpm", jar_rpm, f"give either --ratio ({ratio!r}) or --jar-rpm, not both")
+    raise ConfigError(source, "jar_rpm", jar_rpm, "give either ratio or jar_rpm, not both")
+
+
+# ------------------------------------------------------------------ friction
+def friction_order(source, key: str, mu_s: float, mu_d: float):
+    """μ_d ≤ μ_s (both -): friction eases from its static to its dynamic value as the
+    slip grows (thesis eq 3.7), never up."""
+    if mu_d > mu_s:
+        raise ConfigError(source, key, mu_d, f"dynamic friction must not exceed static mu_s = {mu_s:g}; allowed range [0, {mu_s:g}]")
+
+
+# ------------------------------------------------------------------ contact sets
+def contact_set_fits(source, contact: str, ball_material: str, wall_material: str, balls, jar):
+    """A contact set is measured for one ball material on one wall material (its normal
+    laws hold for no other): the balls (`Balls`) and the jar's wall (`Jar`) must be those."""
+    if ball_material != balls.material.name:
+        raise ConfigError(source, "balls.material", balls.material.name, f"the pair's contact set '{contact}' is for {ball_material} balls")
+    if wall_material != jar.wall_material:
+        raise ConfigError(source, "jar", jar.name, f"wall material {jar.wall_material}; the pair's contact set '{contact}' is for {wall_material} walls")
+
+
+def same_contact_set(source, key: str, pair: str, contact: str, in_use: str, uses: str, why: str = ""):
+    """A further pair (a preset's pair_KIND, a pair chosen while the mill runs) changes
+    friction only: the normal laws stay those of the contact set in use, so the pair's
+    contact set `contact` must be it. uses, why: how the message names the set in use
+    and why it must be kept."""
+    if contact != in_use:
+        raise ConfigError(source, key, pair, f"is for the '{contact}' contact set; {uses} '{in_use}'{why}")
+
+
+# ------------------------------------------------------------------ time step
+def max_impact_speed(plate_omega: float, jar_spin: float, plate_radius: float, jar, gravity: float) -> float:
+    """Upper estimate of contact speeds (m/s), for the automatic time step: the jar's
+    ground speed plus its wall speed plus a free fall across the jar. Ω, w in rad/s,
+    R_p in m, gravity in m/s²."""
+    return abs(plate_omega) * plate_radius + abs(jar_spin) * jar.radius + math.sqrt(2 * gravity * 2 * jar.radius) + 0.5
+
+
+@functools.lru_cache(maxsize=256)
+def _auto_dt(ball_ball, ball_wall, v_max: float) -> float:
+    """laws.auto_dt, once per process for a pair of laws and a speed (it simulates impacts)."""
+    return laws_np.auto_dt((ball_ball, ball_wall), v_max)
+
+
+def auto_dt(ball_ball, ball_wall, frictions, balls, v_max: float) -> float:
+    """The automatic time step (s): STEPS_PER_CONTACT steps in the shortest contact of
+    either `NormalLaw` at impact speeds up to v_max (m/s), and short enough for the rolling
+    resistance of the (ball-ball, ball-wall) `frictions` on these `balls`."""
+    return min(_auto_dt(ball_ball, ball_wall, v_max),
+               laws_np.rolling_dt(frictions, balls.inertia, balls.radius, math.inf))
+
+
+def time_step(source, given, dt_auto: float, v_max: float, duration: float) -> tuple[float, bool]:
+    """(dt in s, whether automatic) for a preset's `dt` = given: "auto" is dt_auto; a
+    number is taken if it leaves ≥ 10 steps per contact at v_max (m/s) and, below the
+    automatic step, at most MAX_STEPS steps in `duration` (s)."""
+    if given == "auto":
+        return dt_auto, True
+    dt_limit = dt_auto * laws_np.STEPS_PER_CONTACT / 10.0  # ≥ 10 steps per contact
+    if isinstance(given, bool) or not isinstance(given, (int, float)) or not 0 < given <= dt_limit:
+        raise ConfigError(source, "dt", given, f"'auto' or a time step in (0, {dt_limit:.3g}] s (10 steps per contact at {v_max:.1f} m/s)")
+    dt = float(given)
+    dt_min = min(dt_auto, duration / MAX_STEPS)
+    if dt < dt_min:
+        raise ConfigError(source, "dt", given, f"'auto' or a time step in [{dt_min:.3g}, {dt_limit:.3g}] s: "
+                          f"{duration / dt:.3g} steps for duration = {duration:g} s, at most {MAX_STEPS:.0e} "
+                          "(smaller than the automatic step only while it runs in reasonable time)")
+    return dt, False
+
+
+def running_dt(preset, plate_omega: float, jar_spin: float, fixed: float | None = None) -> float:
+    """The time step (s) of a running mill of `preset` at speeds up to Ω, w (rad/s): the
+    automatic one, or a preset's explicit dt `fixed` where that is still below it (a
+    speed change must not leave too few steps per contact)."""
+    v = max_impact_speed(plate_omega, jar_spin, preset.plate_radius, preset.jar, preset.gravity)
+    dt = auto_dt(preset.ball_ball, preset.ball_wall, preset.frictions, preset.balls, v)
+    return dt if fixed is None else min(fixed, dt)

@@ -13,7 +13,7 @@ from taimill.model import laws as laws_np
 from taimill.model import rules
 from taimill.model.contact.model import NormalModel
 from taimill.model.contact.registry import NAMES as LAW_NAMES, law_by_name
-from taimill.model.contact.springs import hertz_stiffness, with_exponent
+from taimill.model.contact.springs import hertz_stiffness, mindlin_stiffness, with_exponent
 from taimill.model.jars import Jar
 from taimill.model.materials import Balls, contact_table, load_friction, load_material
 from taimill.model.tables import Table
@@ -34,6 +34,7 @@ class NormalLaw:
     m_eff: float  #: kg, effective mass of the contact type
     e: float  #: nominal restitution (at u_ref for speed-dependent laws)
     u_ref: float  #: m/s
+    kt: float = 0.0  #: N/m^1.5, Mindlin's tangential stiffness 8 G* √R_eff per √u (the `history` friction model)
 
     @property
     def model(self) -> NormalModel:
@@ -98,7 +99,9 @@ def contact_laws(contact: str, law: str | None, balls: Balls, jar: Jar, source, 
     bb, bw = _normal_laws(law, _normal_law(t.table("ball_ball", known=NORMAL_LAW_KEYS), law, k_bb, m / 2.0, e_bb, r / 2.0),
                           _normal_law(t.table("ball_wall", known=NORMAL_LAW_KEYS), law, k_bw, m, e_bw, r))
     t.done()
-    return bb, bw
+    kt_bb = mindlin_stiffness(bm.youngs_modulus, bm.poisson, bm.youngs_modulus, bm.poisson, r / 2.0)
+    kt_bw = mindlin_stiffness(bm.youngs_modulus, bm.poisson, wm.youngs_modulus, wm.poisson, r)
+    return dataclasses.replace(bb, kt=kt_bb), dataclasses.replace(bw, kt=kt_bw)
 
 
 def pair_contact(pair: str, radius: float | None = None, law: str | None = None, source="command line",

@@ -10,12 +10,13 @@ from pathlib import Path
 
 from taimill.errors import ConfigError
 from taimill.model import files, rules
+from taimill.model.contact.registry import DEFAULT_ROLLING, DEFAULT_TANGENTIAL, ROLLING, TANGENTIAL
 from taimill.model.ranges import RANGES
 from taimill.model.tables import Table, read_toml
 
 MATERIALS_FILE = files.PACKAGE / "data" / "materials.toml"
 # The keys of each kind of table (unknown keys are errors, reported with the nearest known one)
-FRICTION_KEYS = ("mu_s", "mu_d", "v_s_mm_s", "v_d_mm_s", "mu_r")
+FRICTION_KEYS = ("mu_s", "mu_d", "v_s_mm_s", "v_d_mm_s", "mu_r", "tangential", "rolling")
 MATERIAL_KEYS = ("density_kg_m3", "youngs_modulus_gpa", "poisson")
 
 
@@ -29,15 +30,18 @@ class Material:
 
 @dataclass(frozen=True)
 class Friction:
-    """Regularised Coulomb friction of thesis eq 3.7, and rolling resistance (a
-    constant torque μ_r R_eff F_n against the relative rolling, taimill.model.laws)."""
+    """Friction and rolling resistance of a contact kind: the coefficients and the
+    tangential and rolling sub-models that use them (taimill.model.contact; by default
+    the regularised Coulomb friction of thesis eq 3.7 and a constant rolling torque)."""
 
     name: str
     mu_s: float  #: static coefficient
-    mu_d: float  #: dynamic coefficient
+    mu_d: float  #: dynamic coefficient (the Coulomb cap of the `history` model)
     v_s: float  #: m/s, μ reaches μ_s
     v_d: float  #: m/s, μ has eased to μ_d
     mu_r: float = 0.0  #: rolling-resistance coefficient; 0: off (the thesis model)
+    tangential: str = DEFAULT_TANGENTIAL  #: tangential sub-model (registry.TANGENTIAL)
+    rolling: str = DEFAULT_ROLLING  #: rolling sub-model (registry.ROLLING)
 
 
 @dataclass(frozen=True)
@@ -142,4 +146,7 @@ def read_friction(t: "Table", name: str, base: Friction | None = None) -> Fricti
     if v_d <= v_s:
         raise ConfigError(t.where("v_d_mm_s"), t.key("v_d_mm_s"), v_d * 1e3, f"must exceed v_s_mm_s = {v_s * 1e3:g}")
     mu_r = t.get("mu_r", 0.0 if base is None else base.mu_r, **RANGES["mu_r"].bounds)
-    return Friction(name, mu_s, mu_d, v_s, v_d, mu_r)
+    tangential = t.get("tangential", DEFAULT_TANGENTIAL if base is None else base.tangential, kind=str,
+                       allowed=tuple(TANGENTIAL))
+    rolling = t.get("rolling", DEFAULT_ROLLING if base is None else base.rolling, kind=str, allowed=tuple(ROLLING))
+    return Friction(name, mu_s, mu_d, v_s, v_d, mu_r, tangential, rolling)

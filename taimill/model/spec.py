@@ -51,7 +51,8 @@ class MillSpec:
     @property
     def contact_models(self) -> tuple[ContactModel, ContactModel]:
         """(ball-ball, ball-wall) compositions of sub-models the kernels must hold."""
-        return tuple(contact_model(law.model) for law in (self.ball_ball, self.ball_wall))
+        return tuple(contact_model(law.model, fr.tangential, fr.rolling)
+                     for law, fr in zip((self.ball_ball, self.ball_wall), self.frictions))
 
     @property
     def n(self):

@@ -24,7 +24,7 @@ import taichi as ti
 from taimill.physics import state as S
 from taimill.physics.events import book_contact, book_mechanism, close_events
 from taimill.physics.frame import wall_velocity_ground
-from taimill.physics.pool import partner_slot, slot_row
+from taimill.physics.pool import claim_row, read_history, slot_row, write_history
 from taimill.physics.response import contact_energy, contact_response, rolling_response
 from taimill.physics.walls import wall_near
 
@@ -86,30 +86,39 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
         mi, mj = F.m[b, i], F.m[b, j]
         m_eff = mi * mj / (mi + mj)
         inv_mass_t = (F.inv_m[b, i] + F.inv_m[b, j]) + (ai.norm_sqr() * F.inv_i[b, i] + aj.norm_sqr() * F.inv_i[b, j])
-        fc, udot, slip, fn, fel, ft = contact_response(F, b, 0, u, nrm, vrel, m_eff, inv_mass_t, dt)
+        owner = S.owns(F, b, i, j)
+        k, row, is_new = -1, -1, False
+        hist_t, e_t, hist_r, e_r = ti.Vector([0.0, 0.0, 0.0]), 0.0, ti.Vector([0.0, 0.0, 0.0]), 0.0
+        if ti.static(F.history[0]):  # the owner reads the history before the response (fused mode)
+            if owner:
+                k, row, is_new = claim_row(F, b, i, j, was_open | seen, was_open)
+                hist_t, e_t, hist_r, e_r = read_history(F, b, row, is_new)
+        fc, udot, slip, fn, fel, ft, new_t, new_e_t = contact_response(F, b, 0, u, nrm, vrel, m_eff, inv_mass_t, dt,
+                                                                       hist_t)
         f, tq = fc, ai.cross(fc)
         m_roll = ti.Vector([0.0, 0.0, 0.0])  # rolling-resistance torque on i; on j it is -m_roll to the bit
-        d_roll = 0.0
+        d_roll, new_r, new_e_r = 0.0, hist_r, 0.0
         if F.mu_r[b, 0] > 0.0:  # off: not computed, runs without it stay bit-identical
-            m_roll, d_roll = rolling_response(F, b, 0, F.s[b, i] - F.s[b, j], nrm, fn, ri * rj / (ri + rj),
-                                              F.inv_i[b, i] + F.inv_i[b, j], dt)
+            m_roll, d_roll, new_r, new_e_r = rolling_response(F, b, 0, F.s[b, i] - F.s[b, j], nrm, fn, fel, u,
+                                                              ri * rj / (ri + rj), F.inv_i[b, i] + F.inv_i[b, j], dt,
+                                                              hist_r)
             tq += m_roll
-        if S.owns(F, b, i, j):
+        if owner:
             dn, dtf, el = contact_energy(F, b, 0, u, udot, slip, fn, fel, ft, m_eff, inv_mass_t, dt)
             if F.mu_r[b, 0] > 0.0:
                 dtf += d_roll
-            diss_n, diss_t, stored = dn, dtf, el
-            k = partner_slot(F, b, i, j, was_open | seen)
-            if k < 0:
-                F.status[b] = S.SLOTS_FULL
-                F.bad_ball[b] = S.user_id(F, b, i)
+            if ti.static(F.history[0]):  # what the springs store is not dissipated: the ledger holds it
+                dtf -= (new_e_t - e_t) + (new_e_r - e_r)
+                el += new_e_t + new_e_r
             else:
-                is_new = (was_open & (1 << k)) == 0
-                row = slot_row(F, b, i, k, is_new, was_open | seen)
-                if row >= 0:
-                    bit = 1 << k
-                    impact = book_contact(F, b, row, is_new, t, u, udot, slip, xi + ai, fn, dn, dtf)
-                    share_with_partner(F, b, i, k, -fc, aj.cross(-fc) - m_roll)
+                k, row, is_new = claim_row(F, b, i, j, was_open | seen, was_open)
+            diss_n, diss_t, stored = dn, dtf, el
+            if row >= 0:
+                bit = 1 << k
+                impact = book_contact(F, b, row, is_new, t, u, udot, slip, xi + ai, fn, dn, dtf)
+                if ti.static(F.history[0]):
+                    write_history(F, b, row, new_t, new_e_t, new_r, new_e_r)
+                share_with_partner(F, b, i, k, -fc, aj.cross(-fc) - m_roll)
     return f, tq, diss_n, diss_t, impact, stored, bit
 
 
@@ -137,25 +146,40 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
             a = nrm * (ri - 0.5 * u)
             vrel = vi + (si - wz).cross(a)
             inv_mass_t = F.inv_m[b, i] + a.norm_sqr() * F.inv_i[b, i]
-            fc, udot, slip, fn, fel, ft = contact_response(F, b, 1, u, nrm, vrel, mi, inv_mass_t, dt)
+            is_new = (was_open & (1 << wall)) == 0
+            row = -1
+            hist_t, e_t, hist_r, e_r = ti.Vector([0.0, 0.0, 0.0]), 0.0, ti.Vector([0.0, 0.0, 0.0]), 0.0
+            if ti.static(F.history[1]):
+                row = slot_row(F, b, i, wall, is_new, was_open | seen)
+                hist_t, e_t, hist_r, e_r = read_history(F, b, row, is_new)
+            fc, udot, slip, fn, fel, ft, new_t, new_e_t = contact_response(F, b, 1, u, nrm, vrel, mi, inv_mass_t, dt,
+                                                                           hist_t)
             dn, dtf, el = contact_energy(F, b, 1, u, udot, slip, fn, fel, ft, mi, inv_mass_t, dt)
             f += fc
             tq += a.cross(fc)
             p = xi + a
             drive += fc.dot(wall_velocity_ground(p, dr, F.plate_radius[b])) * dt
+            new_r, new_e_r = hist_r, 0.0
             if F.mu_r[b, 1] > 0.0:  # the wall turns with the jar: its torque's power w ẑ·M is drive work
-                mr, d_roll = rolling_response(F, b, 1, si - wz, nrm, fn, ri, F.inv_i[b, i], dt)
+                mr, d_roll, new_r_w, new_e_r_w = rolling_response(F, b, 1, si - wz, nrm, fn, fel, u, ri, F.inv_i[b, i],
+                                                                  dt, hist_r)
+                new_r, new_e_r = new_r_w, new_e_r_w
                 tq += mr
                 dtf += d_roll
                 drive += mr.dot(wz) * dt
+            if ti.static(F.history[1]):  # what the springs store is not dissipated: the ledger holds it
+                dtf -= (new_e_t - e_t) + (new_e_r - e_r)
+                el += new_e_t + new_e_r
+            else:
+                row = slot_row(F, b, i, wall, is_new, was_open | seen)
             diss += dn + dtf
             stored += el
-            is_new = (was_open & (1 << wall)) == 0
-            row = slot_row(F, b, i, wall, is_new, was_open | seen)
             impact = False
             if row >= 0:
                 seen |= 1 << wall
                 impact = book_contact(F, b, row, is_new, t, u, udot, slip, p, fn, dn, dtf)
+                if ti.static(F.history[1]):
+                    write_history(F, b, row, new_t, new_e_t, new_r, new_e_r)
             book_mechanism(F, b, i, 1 + wall, impact, dn, dtf)
     # The neighbours that touch are gathered first, without a branch: whether one
     # touches is often a coin toss (on a bed 4.7 of 11.6), and a mispredicted branch

@@ -14,7 +14,12 @@ def book_contact(F: ti.template(), b, row, is_new, t, u, udot, slip, p, fn, dn, 
     stress-event threshold and it is younger than the impact age (model/mechanisms.py)."""
     impact = False
     if is_new:
-        F.pool[b, row] = ti.Vector([t, udot, slip.norm(), p[0], p[1], p[2], fn, u, dn, dtf])
+        q = ti.Vector([t, udot, slip.norm(), p[0], p[1], p[2], fn, u, dn, dtf])
+        if ti.static(F.pool_width == S.SLOT_DATA):
+            F.pool[b, row] = q
+        else:  # the history columns are the history model's (pool.write_history)
+            for c in ti.static(range(S.SLOT_DATA)):
+                F.pool[b, row][c] = q[c]
         impact = udot >= F.stress_un[b]
     else:
         q = F.pool[b, row]

@@ -106,7 +106,15 @@ def friction_force(slip, f_n, mu_s, mu_d, v_s, v_d, inv_mass_t, dt):
     return f
 
 
-TANGENTIAL = {"regularised-coulomb": friction_force}
+@ti.func
+def regularised_coulomb(slip, nrm, fn, u, mu_s, mu_d, v_s, v_d, kt, xi, inv_mass_t, dt):
+    """regularised-coulomb in the tangential sub-models' signature: (force, history,
+    energy stored in the history). It keeps none."""
+    return friction_force(slip, fn, mu_s, mu_d, v_s, v_d, inv_mass_t, dt), xi, 0.0
+
+
+# (slip, nrm, F_n, u, μ_s, μ_d, v_s, v_d, k_t, ξ, inv_mass_t, dt) -> (F_t, ξ', stored energy)
+TANGENTIAL = {"regularised-coulomb": regularised_coulomb}
 
 
 # ------------------------------------------------------------------ rolling resistance
@@ -125,4 +133,13 @@ def rolling_torque(spin_rel, nrm, f_n, mu_r, r_eff, inv_inertia, dt):
     return tq, (-tq.dot(w_r) - 0.5 * tq.norm_sqr() * inv_inertia * dt) * dt
 
 
-ROLLING = {"constant-torque": rolling_torque}
+@ti.func
+def constant_torque(spin_rel, nrm, fn, fel, u, mu_r, r_eff, m_r, inv_inertia, dt):
+    """constant-torque in the rolling sub-models' signature: (torque, work it removes
+    over the step, history, energy stored in the history). It keeps none."""
+    tq, d = rolling_torque(spin_rel, nrm, fn, mu_r, r_eff, inv_inertia, dt)
+    return tq, d, m_r, 0.0
+
+
+# (ω_rel, nrm, F_n, F_el, u, μ_r, R_eff, M_r, inv_inertia, dt) -> (torque, work, M_r', stored energy)
+ROLLING = {"constant-torque": constant_torque}

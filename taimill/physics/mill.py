@@ -42,6 +42,7 @@ def write_mill(F, b: int, spec: MillSpec):
         F.law_k[b, ct] = law.k
         F.law_c[b, ct] = law.c
         F.law_d[b, ct] = law.d
+        F.law_kt[b, ct] = law.kt
     for ct, fr in enumerate(spec.frictions):
         set_friction(F, b, fr, ct)
     F.n_pieces[b] = len(pieces)

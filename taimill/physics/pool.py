@@ -106,3 +106,44 @@ def partner_slot(F: ti.template(), b, i, j, taken):
             found = free
             F.slot_partner[b, i, free] = j
     return found
+
+
+@ti.func
+def claim_row(F: ti.template(), b, i, j, taken, was_open):
+    """(slot, pool row, is_new) of owner i's contact with ball j (partner_slot, then
+    slot_row); slot -1 and SLOTS_FULL flagged if ball i has no free slot, row -1 if the
+    pool is full."""
+    row, is_new = -1, False
+    k = partner_slot(F, b, i, j, taken)
+    if k < 0:
+        F.status[b] = S.SLOTS_FULL
+        F.bad_ball[b] = S.user_id(F, b, i)
+    else:
+        is_new = (was_open & (1 << k)) == 0
+        row = slot_row(F, b, i, k, is_new, taken)
+    return k, row, is_new
+
+
+@ti.func
+def read_history(F: ti.template(), b, row, is_new):
+    """(tangential history ξ, its stored energy, rolling history M_r, its stored energy)
+    of the contact in pool row `row`: zero for a new contact or without a row."""
+    xi = ti.Vector([0.0, 0.0, 0.0])
+    m_r = ti.Vector([0.0, 0.0, 0.0])
+    e_xi, e_mr = 0.0, 0.0
+    if row >= 0 and not is_new:
+        q = F.pool[b, row]
+        xi = ti.Vector([q[S.SLOT_XI], q[S.SLOT_XI + 1], q[S.SLOT_XI + 2]])
+        m_r = ti.Vector([q[S.SLOT_MR], q[S.SLOT_MR + 1], q[S.SLOT_MR + 2]])
+        e_xi, e_mr = q[S.SLOT_EXI], q[S.SLOT_EMR]
+    return xi, e_xi, m_r, e_mr
+
+
+@ti.func
+def write_history(F: ti.template(), b, row, xi, e_xi, m_r, e_mr):
+    """Keep a contact's history in its pool row for the next step."""
+    for c in ti.static(range(3)):
+        F.pool[b, row][S.SLOT_XI + c] = xi[c]
+        F.pool[b, row][S.SLOT_MR + c] = m_r[c]
+    F.pool[b, row][S.SLOT_EXI] = e_xi
+    F.pool[b, row][S.SLOT_EMR] = e_mr

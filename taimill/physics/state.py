@@ -21,6 +21,12 @@ SLOTS = WALLS + PARTNER_SLOTS
 # Event accumulators of an open contact: one row of the mill's contact pool per open slot.
 SLOT_T0, SLOT_UN, SLOT_UT, SLOT_PX, SLOT_PY, SLOT_PZ, SLOT_FPEAK, SLOT_UPEAK, SLOT_DN, SLOT_DT = range(10)
 SLOT_DATA = 10
+# History of a contact whose tangential or rolling model keeps one, after the
+# accumulators in its pool row (present only in engines compiled for such a model):
+# tangential spring ξ (m, 3), the energy it stored at the last step (J), rolling spring
+# torque (N m, 3), its stored energy (J).
+SLOT_XI, SLOT_EXI, SLOT_MR, SLOT_EMR = SLOT_DATA, SLOT_DATA + 3, SLOT_DATA + 4, SLOT_DATA + 7
+HISTORY = 8
 
 # Event record columns as the kernel writes them: the schema's event columns without
 # those the launcher derives after each launch (the stress energies).
@@ -87,6 +93,11 @@ class Fields:
         # the ContactModels the kernels are compiled for, per contact type (ball-ball,
         # ball-wall): compile-time constants of every kernel that takes these fields
         self.models = tuple(tuple(m) for m in (models or default_models()))
+        # per contact type: a model keeps a per-contact history (in its pool row)
+        self.history = tuple(any(m.tangential.history or m.rolling.history for m in ms) for ms in self.models)
+        self.pool_width = SLOT_DATA + (HISTORY if any(self.history) else 0)
+        if reorder and any(self.history):  # reorder.py moves rows of SLOT_DATA columns
+            raise ValueError("contact models with history run in fused mode only")
         if reorder and (B != 1 or share_pairs):
             raise ValueError("balls are stored in grid order only in parallel mode (one mill)")
         P = pool_rows(N) if pool is None else pool
@@ -130,6 +141,7 @@ class Fields:
         self.law_k = ti.field(f64, (B, CONTACT_TYPES))  #: stiffness, N/m^n
         self.law_c = ti.field(f64, (B, CONTACT_TYPES))  #: damping coefficient, unit of the damping model
         self.law_d = ti.field(f64, (B, CONTACT_TYPES))  #: m, full-damping overlap (adams-step)
+        self.law_kt = ti.field(f64, (B, CONTACT_TYPES))  #: N/m^1.5, tangential stiffness per √u (history models)
         # friction (eq 3.7) and rolling resistance per contact type, live-tunable [B, 2]
         self.mu_s = ti.field(f64, (B, CONTACT_TYPES))
         self.mu_d = ti.field(f64, (B, CONTACT_TYPES))
@@ -177,7 +189,7 @@ class Fields:
         self.slot_closed = ti.field(i32, (B, N))  #: bit k set: slot k closed this step, its row not yet released
         self.slot_partner = ti.field(i32, (B, N, SLOTS))  #: partner ball of slot k ≥ WALLS
         self.slot_row = ti.field(i32, (B, N, SLOTS))  #: pool row of open slot k
-        self.pool = ti.Vector.field(SLOT_DATA, f64, (B, P))  #: event accumulators of an open contact
+        self.pool = ti.Vector.field(self.pool_width, f64, (B, P))  #: event accumulators (and history) of an open contact
         self.pool_free = ti.field(i32, (B, max(1, P - self.spill_base)))  #: stack of released shared rows, [0, pool_top)
         self.pool_top = ti.field(i32, B)
         self.pool_used = ti.field(i32, B)  #: shared rows ever handed out: spill_base + [0, pool_used)

@@ -14,6 +14,13 @@ def hertz_stiffness(e1, nu1, e2, nu2, r1, r2=None):
     return 4.0 / (3.0 * math.pi) / eta * math.sqrt(r_eff)
 
 
+def mindlin_stiffness(e1, nu1, e2, nu2, r_eff):
+    """Mindlin's tangential stiffness per √overlap (N/m^1.5): k_t = 8 G* √(R_eff u) with
+    1/G* = (2-ν₁)/G₁ + (2-ν₂)/G₂, G = E/(2(1+ν)) (Mindlin 1949; as LIGGGHTS' hertz model)."""
+    g_star = 1.0 / (2.0 * (2.0 - nu1) * (1.0 + nu1) / e1 + 2.0 * (2.0 - nu2) * (1.0 + nu2) / e2)
+    return 8.0 * g_star * math.sqrt(r_eff)
+
+
 def di_maio_stiffness(m_eff, u_ref, e_eff, r_eff):
     """Linear stiffness k* (N/m) matching Hertz' peak force/overlap ratio, eq 2.17."""
     return (320.0 / 81.0 * m_eff * u_ref**2 * e_eff**4 * r_eff**2) ** 0.2

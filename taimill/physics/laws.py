@@ -6,6 +6,9 @@ kernels contain only the sub-models it uses, with no test of a model in the loop
 
 import taichi as ti
 
+from taimill.physics.rolling_epsd2 import epsd2_torque
+from taimill.physics.tangential_history import history_force
+
 
 @ti.func
 def smoothstep(s):
@@ -114,7 +117,7 @@ def regularised_coulomb(slip, nrm, fn, u, mu_s, mu_d, v_s, v_d, kt, xi, inv_mass
 
 
 # (slip, nrm, F_n, u, μ_s, μ_d, v_s, v_d, k_t, ξ, inv_mass_t, dt) -> (F_t, ξ', stored energy)
-TANGENTIAL = {"regularised-coulomb": regularised_coulomb}
+TANGENTIAL = {"regularised-coulomb": regularised_coulomb, "history": history_force}
 
 
 # ------------------------------------------------------------------ rolling resistance
@@ -134,12 +137,12 @@ def rolling_torque(spin_rel, nrm, f_n, mu_r, r_eff, inv_inertia, dt):
 
 
 @ti.func
-def constant_torque(spin_rel, nrm, fn, fel, u, mu_r, r_eff, m_r, inv_inertia, dt):
+def constant_torque(spin_rel, nrm, fn, fel, u, kt, mu_r, r_eff, m_r, inv_inertia, dt):
     """constant-torque in the rolling sub-models' signature: (torque, work it removes
     over the step, history, energy stored in the history). It keeps none."""
     tq, d = rolling_torque(spin_rel, nrm, fn, mu_r, r_eff, inv_inertia, dt)
     return tq, d, m_r, 0.0
 
 
-# (ω_rel, nrm, F_n, F_el, u, μ_r, R_eff, M_r, inv_inertia, dt) -> (torque, work, M_r', stored energy)
-ROLLING = {"constant-torque": constant_torque}
+# (ω_rel, nrm, F_n, F_el, u, k_t, μ_r, R_eff, M_r, inv_inertia, dt) -> (torque, work, M_r', stored energy)
+ROLLING = {"constant-torque": constant_torque, "epsd2": epsd2_torque}

@@ -67,13 +67,13 @@ def rolling_response(F: ti.template(), b, ct: ti.template(), spin_rel, nrm, fn, 
     d, e_r = 0.0, 0.0
     m_new = m_r
     if ti.static(len(F.models[ct]) == 1):
-        tq, d, m_new, e_r = ROLLING[F.models[ct][0].rolling.name](spin_rel, nrm, fn, fel, u, F.mu_r[b, ct], r_eff, m_r,
-                                                                 inv_inertia, dt)
+        tq, d, m_new, e_r = ROLLING[F.models[ct][0].rolling.name](spin_rel, nrm, fn, fel, u, F.law_kt[b, ct],
+                                                                 F.mu_r[b, ct], r_eff, m_r, inv_inertia, dt)
     else:
         for v in ti.static(range(len(F.models[ct]))):
             if F.variant[b, ct] == v:
-                tq, d, m_new, e_r = ROLLING[F.models[ct][v].rolling.name](spin_rel, nrm, fn, fel, u, F.mu_r[b, ct],
-                                                                         r_eff, m_r, inv_inertia, dt)
+                tq, d, m_new, e_r = ROLLING[F.models[ct][v].rolling.name](spin_rel, nrm, fn, fel, u, F.law_kt[b, ct],
+                                                                         F.mu_r[b, ct], r_eff, m_r, inv_inertia, dt)
     return tq, d, m_new, e_r
 
 

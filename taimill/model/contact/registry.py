@@ -14,7 +14,7 @@ A new sub-model is its own module (NumPy here, its Taichi twin under the same na
 
 from __future__ import annotations
 
-from taimill.model.contact import damping, rolling, springs, tangential
+from taimill.model.contact import damping, rolling, rolling_epsd2, springs, tangential, tangential_history
 from taimill.model.contact.model import ContactModel, NormalModel
 
 
@@ -24,8 +24,8 @@ def _by_name(*models) -> dict:
 
 SPRINGS = _by_name(springs.HERTZ, springs.LINEAR, springs.POWER)
 DAMPINGS = _by_name(damping.STEP, damping.VISCOUS, damping.HUNT_CROSSLEY, damping.TSUJI)
-TANGENTIAL = _by_name(tangential.REGULARISED_COULOMB)
-ROLLING = _by_name(rolling.CONSTANT_TORQUE)
+TANGENTIAL = _by_name(tangential.REGULARISED_COULOMB, tangential_history.HISTORY)
+ROLLING = _by_name(rolling.CONSTANT_TORQUE, rolling_epsd2.EPSD2)
 
 LAWS = _by_name(
     NormalModel("adams-impact", springs.HERTZ, damping.STEP),

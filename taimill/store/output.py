@@ -15,6 +15,10 @@
   the old one. If the work fails (unstable, interrupted, an error), the old output
   stays as it was and the new partial one is kept beside it under that name; the
   message says so.
+- **Only our own outputs are replaced.** An existing path is replaced (--overwrite) or
+  resumed only if it is an output of the kind being written that taimill wrote
+  (`ours`: a run store, a sweep store, a recording) and no input of the command
+  (`taimill.model.files.check_replaceable`, the one check every writing command uses).
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ import time
 from pathlib import Path
 
 from taimill.errors import ConfigError, Interrupted, StoreError, StoreWriteError
+from taimill.model.files import check_replaceable
 
 NO_LOCKS = {errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL}
 
@@ -174,7 +179,7 @@ def swap_in(build, target) -> None:
 class Output:
     """One output path written by this process (module doc):
 
-        with Output("RUN.zarr", overwrite=True, what="run") as out:
+        with Output("RUN.zarr", overwrite=True, what="run", kind="run store", ours=is_run_store) as out:
             ...write into out.build...
             out.commit()
 
@@ -183,18 +188,24 @@ class Output:
     Leaving the block without commit() (an error, an interrupt) keeps an existing
     output unchanged; the partial one stays beside it if `keep(build)` says it holds
     anything worth keeping (default: it exists), else it is deleted. An interrupt
-    leaves as an `Interrupted` whose message says where things are."""
+    leaves as an `Interrupted` whose message says where things are. An existing path
+    is replaced or reused only if `ours(path)` says it is an output of this kind and it
+    is none of `inputs` (the files the command reads): check_replaceable, whose refusal
+    calls it a `kind` (default: `what`)."""
 
-    def __init__(self, path, *, overwrite: bool = False, reuse: bool = False, option: str = "--out",
-                 what: str = "output", keep=None):
+    def __init__(self, path, *, ours, overwrite: bool = False, reuse: bool = False, option: str = "--out",
+                 what: str = "output", kind: str | None = None, keep=None, inputs=()):
         self.path = Path(path)
         self.overwrite, self.reuse, self.option, self.what = overwrite, reuse, option, what
+        self.ours, self.kind, self.inputs = ours, kind or what, tuple(inputs)
         self.keep = keep or os.path.lexists
         self.lock = OutputLock(path)
         self.build = self.path
         self.replacing = self.committed = False
 
     def __enter__(self) -> "Output":
+        if self.overwrite or self.reuse:  # before the lock: a refusal leaves no trace beside a user's file
+            check_replaceable(self.path, self.option, self.kind, self.ours, inputs=self.inputs)
         self.lock.acquire()
         try:
             exists = os.path.lexists(self.path)

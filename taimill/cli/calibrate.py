@@ -97,7 +97,7 @@ def cmd_fit(a) -> int:
         pair_contact(a.pair, law=a.law)
         data = load_drop_data(a.data)
     if a.out:
-        check_output(a.out, "--out", overwrite=a.overwrite, what="pair file written by `taimill calibrate fit`",
+        check_output(a.out, "--out", overwrite=a.overwrite, what="fitted pair file",
                      ours=is_fitted_pair_file, inputs=inputs)
     _check_figure(a, inputs)
     try:

@@ -54,10 +54,10 @@ def cmd_export(a) -> int:
     with reads() as inputs:
         preset = load_preset(a.preset, overrides(a))
     mapping = contact_mapping(preset, strict=a.strict)  # a refusal leaves an existing --out case untouched
-    _check_out(a.out, a.overwrite, "case exported by `taimill export liggghts`", is_case, inputs)
+    _check_out(a.out, a.overwrite, "LIGGGHTS case", is_case, inputs)
     # built beside an existing case and swapped in when complete (store/output.py); a
     # half-written case is of no use, so none is kept
-    with Output(a.out, overwrite=a.overwrite, what="case", kind="case exported by `taimill export liggghts`",
+    with Output(a.out, overwrite=a.overwrite, what="case", kind="LIGGGHTS case",
                 ours=is_case, inputs=inputs, keep=lambda _: False) as out:
         result = export_case(preset, out.build, strict=a.strict, dump_mesh=a.dump_mesh, liggghts=a.liggghts,
                              mapping=mapping)

@@ -120,7 +120,7 @@ def _refuse_existing(out: Path, stems, a) -> None:
 
     ours = _marked(out)
     for p in there:
-        check_replaceable(p, "--out", f"figure taimill wrote for a report (listed in {REPORT_MARK})",
+        check_replaceable(p, "--out", f"report figure (listed in {REPORT_MARK})",
                           lambda q: q.name in ours and is_figure(q))
 
 

@@ -819,7 +819,8 @@ def test_the_table_is_large_and_covers_every_subcommand():
 # A few through the real command, end to end: the one line really is all a user sees.
 SUBPROCESS = ["run PRESET: binary", "run --ratio: nan", "preset: misspelled key", "run --out missing folder",
               "overwrite: run --out the preset", "overwrite: run --out a folder of other files",
-              "overwrite: import liggghts --out the case", "overlay CSV: negative error", "drop CSV: extra cell",
+              "overwrite: import liggghts --out the case", "overwrite: run --out a pipe", "overlay CSV: negative error",
+              "drop CSV: extra cell",
               "jars show --out existing"]
 
 

@@ -174,14 +174,16 @@ def content(req: Request, points: list[dict]) -> dict:
     pair file sets (FILE_AXES)."""
     from taimill.model.params import load_preset
 
-    configs = [flat(plain(p["preset"].as_dict())) for p in points]
     parts = {f"preset {req.preset}": flat(plain(load_preset(req.preset, req.overrides).as_dict()))}
-    for key, names in FILE_AXES.items():
-        for v in req.axes.get(key, []):
-            config = next(c for c, p in zip(configs, points) if p["overrides"].get(key) == v)
-            parts[f"--{key.replace('_', '-')} {v}"] = {k: x for k, x in config.items() if k.split(".")[0] in names}
-    digest = hashlib.sha256(json.dumps(configs, sort_keys=True).encode()).hexdigest()
-    return {"sha256": digest, "parts": parts}
+    digest = hashlib.sha256()
+    for p in points:  # one point at a time: 10⁴ configurations with start positions are large
+        config = flat(plain(p["preset"].as_dict()))
+        digest.update(json.dumps(config, sort_keys=True).encode())
+        for key, names in FILE_AXES.items():
+            label = f"--{key.replace('_', '-')} {p['overrides'].get(key)}"
+            if key in req.axes and label not in parts:
+                parts[label] = {k: x for k, x in config.items() if k.split(".")[0] in names}
+    return {"sha256": digest.hexdigest(), "parts": parts}
 
 
 def point_values(p, replica: int) -> dict:

@@ -1,6 +1,7 @@
 """Never lose a user's file or mix two results (docs/outputs.md, replacing an output and
-resuming a sweep), through the real CLI: --overwrite replaces a run store taimill wrote,
-never the case an import reads nor a store another writer holds; a sweep resumes only
+resuming a sweep), through the real CLI: --overwrite replaces a run store taimill wrote
+(and cleans what killed writers left beside it), never the case an import reads nor a
+store another writer holds; a sweep resumes only
 against the configuration it started with; two jar files of one name are two curves.
 Refusals of inputs and of users' files before anything runs are cases of the table in
 test_bad_input.py."""
@@ -36,14 +37,22 @@ def files(folder: Path) -> dict:
     return {f: f.read_bytes() for f in folder.rglob("*") if f.is_file()}
 
 
-def test_an_old_run_store_is_replaced(tmp_path):
+def test_an_old_run_store_is_replaced_and_leftovers_of_killed_writers_cleaned(tmp_path):
     out = tmp_path / "run.zarr"
-    for duration in (0.05, 0.1):
-        res = taimill("run", PRESET, "--duration", duration, "--out", out, "--overwrite", "--json")
-        assert res.returncode == 0, res.stderr
+    res = taimill("run", PRESET, "--duration", 0.05, "--out", out, "--json")
+    assert res.returncode == 0, res.stderr
+    gone = 2**22 + 1  # above Linux' largest pid: a writer that is no longer running
+    shutil.copytree(out, tmp_path / f"run.partial-{gone}.zarr")  # an --overwrite killed while building
+    shutil.copytree(out, tmp_path / f"run.zarr.old-{gone}")  # one killed between the renames of its swap
+    (tmp_path / f"run.zarr.old-{gone + 1}").write_text("a user's file of that name stays")
+    res = taimill("run", PRESET, "--duration", 0.1, "--out", out, "--overwrite", "--json")
+    assert res.returncode == 0, res.stderr
     run = open_run(out)
     assert run.status == "complete" and run.config["duration"] == pytest.approx(0.1, rel=1e-3)  # whole steps
-    assert [p.name for p in tmp_path.iterdir()] == ["run.zarr"]  # no partial store, no lock left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.zarr", f"run.zarr.old-{gone + 1}"]  # no lock left
+    assert res.stderr.splitlines() == [
+        f"taimill: removed {tmp_path / name}, left by an earlier writer of {out} that did not finish"
+        for name in (f"run.partial-{gone}.zarr", f"run.zarr.old-{gone}")]
 
 
 def test_import_never_replaces_its_case_and_takes_the_lock(tmp_path):

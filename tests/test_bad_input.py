@@ -576,6 +576,7 @@ DROP_CSVS = {
     "sigma negative": ("h0_mm,e,sigma_e\n100,0.9,-0.1\n", ["sigma_e (line 2)"]),
     "header only": ("h0_mm,e\n# no rows\n", ["rows", "no data rows"]),
     "over-long field": ("h0_mm,e\n" + "1" * 200_000 + ",0.9\n", ["line 2", "CSV"]),
+    "extra cell": ("h0_mm,e\n100,0.9\n200,0.85,0.05\n", ["line 3", "3 cells", "2 columns", "h0_mm,e"]),
 }
 # name -> (overlay CSV text, words) for `report SWEEP --overlay`
 OVERLAYS = {
@@ -589,6 +590,35 @@ OVERLAYS = {
     "infinite": ("ratio,a\n-1,inf\n", ["line 2, column a", "finite"]),
     "missing ratio": ("ratio,a\n,2\n", ["column ratio", "needs a ratio"]),
     "orphan error column": ("ratio,a,b_err\n-1,2,0.1\n", ["header", "b_err"]),
+    "negative error": ("ratio,a,a_err\n-1,2,0.1\n-2,3,-0.2\n", ["line 3, column a_err", "-0.2", "[0, ∞)"]),
+}
+# --overwrite of something taimill did not write, or of an input: name -> (argv, words).
+# {in}/presets/mine.toml, {in}/pairs/mine.toml and {in}/case are written for them.
+MINE = "{in}/presets/mine.toml"
+OVERWRITES = {
+    "run --out the preset": (["run", MINE, "--out", MINE, "--overwrite"], ["--out", "mine.toml", "is an input"]),
+    "run --out the preset's folder": (["run", MINE, "--out", "{in}/presets", "--overwrite"], ["--out", "holds", "mine.toml"]),
+    "run --out a folder of other files": (["run", MINE, "--out", "{work}/figs", "--overwrite"],
+                                          ["--out", "figs", "not a run store", "not replaced"]),
+    "run --out a pipe": (["run", MINE, "--out", "{in}/bad/fifo.toml", "--overwrite"], ["--out", "not a regular file"]),
+    "run --rrd a user's file": (["run", MINE, "--rrd", "{work}/existing.rrd", "--overwrite"],
+                                ["--rrd", "existing.rrd", "not a rerun recording", "not replaced"]),
+    "sweep --out a folder of other files": (["sweep", MINE, "--ratio", "-2", "--out", "{work}/figs", "--overwrite"],
+                                            ["--out", "not a sweep store", "not replaced"]),
+    "sweep --out the preset's folder": (["sweep", MINE, "--ratio", "-2", "--out", "{in}/presets"], ["--out", "holds", "mine.toml"]),
+    "record --rrd a user's file": (["record", "{in}/empty.zarr", "--rrd", "{work}/existing.rrd", "--overwrite"],
+                                   ["--rrd", "not replaced"]),
+    "report --overwrite a user's file of a figure's name": (["report", "{in}/empty.zarr", "--out", "{work}/figs", "--overwrite"],
+                                                          ["trajectories.png", "not replaced"]),
+    "jars show --out a user's picture": (["jars", "show", "CY", "--out", "{work}/existing.png", "--overwrite"],
+                                         ["--out", "existing.png", "not a figure", "not replaced"]),
+    "calibrate fit --out a user's file": (FIT[:6] + ["--out", "{work}/existing.toml", "--overwrite"], ["--out", "not replaced"]),
+    "calibrate fit --out the pair file": (["calibrate", "fit", "--pair", "{in}/pairs/mine.toml", "--data", TABLE_2_1, "--out",
+                                           "{in}/pairs/mine.toml", "--overwrite"], ["--out", "is an input"]),
+    "import liggghts --out the case": (["import", "liggghts", "{in}/case", "--out", "{in}/case", "--overwrite"],
+                                       ["--out", "is an input"]),
+    "export liggghts --out the preset's folder": (["export", "liggghts", MINE, "--out", "{in}/presets", "--overwrite"],
+                                                  ["--out", "holds", "mine.toml"]),
 }
 
 
@@ -614,6 +644,8 @@ def _content_cases():
     for name, (text, words) in OVERLAYS.items():
         cases.append((f"overlay CSV: {name}", ["report", "{in}/sweep.zarr", "--out", "{work}/rep", "--overlay", f"{{in}}/csv/ov-{_slug(name)}.csv"],
                       words, {"write": (f"csv/ov-{_slug(name)}.csv", text)}))
+    mine = [("presets/mine.toml", GOOD_PRESET), ("pairs/mine.toml", GOOD_PAIR), ("case/taimill-case.json", "{}")]
+    cases += [(f"overwrite: {name}", argv, words, {"write": mine}) for name, (argv, words) in OVERWRITES.items()]
     return cases
 
 
@@ -682,8 +714,9 @@ def base(tmp_path_factory):
         Path(target).write_text(text)
     for name, argv, words, extra in CASES:
         if "write" in extra:
-            rel, text = extra["write"]
-            (inp / rel).write_text(text)
+            for rel, text in [extra["write"]] if isinstance(extra["write"][0], str) else extra["write"]:
+                (inp / rel).parent.mkdir(exist_ok=True)
+                (inp / rel).write_text(text)
     # existing outputs that must survive
     for name in ("existing.png", "existing.svg", "jar-HM.png"):
         (work / name).write_bytes(b"\x89PNG old figure")
@@ -785,6 +818,9 @@ def test_the_table_is_large_and_covers_every_subcommand():
 
 # A few through the real command, end to end: the one line really is all a user sees.
 SUBPROCESS = ["run PRESET: binary", "run --ratio: nan", "preset: misspelled key", "run --out missing folder",
+              "overwrite: run --out the preset", "overwrite: run --out a folder of other files",
+              "overwrite: import liggghts --out the case", "overwrite: run --out a pipe", "overlay CSV: negative error",
+              "drop CSV: extra cell",
               "jars show --out existing"]
 
 

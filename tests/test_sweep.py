@@ -86,11 +86,15 @@ def test_a_range_too_long_to_count_is_refused_after_a_taichi_run_too():
 
 def test_chunks_group_engines_and_put_the_costliest_first():
     def job(i, n, dt, jar="CY"):
-        return Job(i, SimpleNamespace(balls=SimpleNamespace(count=n), jar=SimpleNamespace(name=jar), duration=1.0, dt=dt))
+        jar = SimpleNamespace(name=jar.removesuffix(".toml"), source=jar if jar.endswith(".toml") else f"jars/{jar}.toml")
+        return Job(i, SimpleNamespace(balls=SimpleNamespace(count=n), jar=jar, duration=1.0, dt=dt))
 
-    jobs = [job(0, 12, 2e-6), job(1, 12, 1e-6), job(2, 24, 2e-6), job(3, 12, 1.5e-6), job(4, 12, 3e-6, "HM")]
+    jobs = [job(0, 12, 2e-6), job(1, 12, 1e-6), job(2, 24, 2e-6), job(3, 12, 1.5e-6), job(4, 12, 3e-6, "HM"),
+            job(5, 12, 4e-6, "mine/CY.toml")]
     got = [[j.index for j in c] for c in chunks(jobs, 2)]
-    assert got == [[1, 3], [2], [0], [4]]  # one ball count and jar per chunk; costs 20e6, 12e6, 6e6, 4e6 ball-steps
+    # one ball count and jar file per chunk (a user's CY.toml is not the built-in CY);
+    # costs 20e6, 12e6, 6e6, 4e6, 3e6 ball-steps
+    assert got == [[1, 3], [2], [0], [4], [5]]
     assert auto_batch(21, 2) == 1 and auto_batch(160, 2) == 10 and auto_batch(10**4, 2) == 16
 
 

@@ -61,6 +61,15 @@ DUMP_COLUMNS = ("id", "type", "x", "y", "z", "vx", "vy", "vz", "omegax", "omegay
 RAYLEIGH_FRACTION, HERTZ_FRACTION = 0.2, 0.2
 
 
+def is_case(path) -> bool:
+    """True if `path` is a case `export_case` wrote: a folder with its manifest (what
+    `export liggghts --overwrite` may replace; LIGGGHTS' dumps in it go with it)."""
+    try:
+        return json.loads((Path(path) / MANIFEST).read_text()).get("format") == FORMAT
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
 @dataclass
 class Mapping:
     """How taimill's contact model is expressed in LIGGGHTS, with what could not be."""

@@ -62,7 +62,11 @@ def load_drop_data(path) -> DropData:
         raise ConfigError(path, "columns", ",".join(header), "need h0_mm and rebound_mm or e (optional sigma_e or sigma_mm)")
     h0, e, sigma, rebound = [], [], [], []
     for line, row in lines[1:]:
-        cells = dict(zip(header, (c.strip() for c in csv_cells(row, path, f"line {line}"))))
+        values = [c.strip() for c in csv_cells(row, path, f"line {line}")]
+        if len(values) > len(header):  # a shifted row would silently fit the wrong numbers
+            raise ConfigError(path, f"line {line}", row, f"{len(values)} cells; the header has {len(header)} columns "
+                              f"({','.join(header)})")
+        cells = dict(zip(header, values))
         h = _number(path, line, "h0_mm", cells.get("h0_mm"), 0, MAX_HEIGHT_MM, " mm")
         hr = math.nan
         if "rebound_mm" in header and (cells.get("rebound_mm") or "e" not in header):

@@ -37,17 +37,31 @@ def _value(v) -> str:
     return json.dumps(str(v), ensure_ascii=False)  # a TOML basic string
 
 
+HEADER = "# Pair file written by `taimill calibrate fit`"  #: the start of every pair file's first line (its mark)
+
+
+def is_fitted_pair_file(path) -> bool:
+    """True if `path` is a pair file `calibrate fit` wrote (its first line), the only
+    kind `calibrate fit --out --overwrite` replaces."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as f:
+            return f.readline().startswith(HEADER)
+    except OSError:
+        return False
+
+
 def write_pair_file(path, pair: str, *, law: str, override: dict, name: str | None = None,
                     comments: list[str] = ()) -> Path:
     """Write `pair`'s friction and contact set, with `override` (contact-table entries,
     as for contact_sets.pair_contact) and normal law `law`, as a pair file named NAME
-    (default "<pair>-fit"). `comments` go on top (what was fitted, to which data)."""
+    (default "<pair>-fit"). `comments` go on top (what was fitted, to which data),
+    after the HEADER line that marks the file as one taimill wrote."""
     path = Path(path)
     friction, contact_id = load_friction(pair, "command line", base=Path.cwd())
     table, _, _ = contact_table(contact_id)
     name = name or f"{Path(pair).stem if pair.endswith('.toml') else pair}-fit"
     contact = {**table, "law": law, **{k: {**table[k], **v} for k, v in override.items()}}
-    lines = [f"# {c}" for c in comments] + [
+    lines = [f"{HEADER} ({law})."] + [f"# {c}" for c in comments] + [
         "", f"[pair.{json.dumps(name)}]", f"contact = {json.dumps(name)}",
         f"mu_s = {_value(friction.mu_s)}", f"mu_d = {_value(friction.mu_d)}",
         f"v_s_mm_s = {_value(round(friction.v_s * 1e3, 12))}", f"v_d_mm_s = {_value(round(friction.v_d * 1e3, 12))}",

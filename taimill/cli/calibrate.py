@@ -21,12 +21,15 @@ MAX_OFFSETS = 1000  #: oblique impacts of one call
 FIGURE_SUFFIXES = (".png", ".svg")
 
 
-def _check_figure(a) -> None:
-    """--figure: checked before anything runs (suffix, folder, an existing file)."""
+def _check_figure(a, inputs=()) -> None:
+    """--figure: checked before anything runs (suffix, folder, an existing file: only
+    a figure taimill drew is replaced, and none of `inputs`)."""
     if a.figure:
+        from taimill.figures import is_figure
         from taimill.model.files import check_output
 
-        check_output(a.figure, "--figure", overwrite=a.overwrite, suffixes=FIGURE_SUFFIXES)
+        check_output(a.figure, "--figure", overwrite=a.overwrite, suffixes=FIGURE_SUFFIXES, what="figure",
+                     ours=is_figure, inputs=inputs)
 
 
 def _emit(a, value, text, figure=None):
@@ -82,18 +85,21 @@ def cmd_fit(a) -> int:
     from taimill.calibration.data import load_drop_data
     from taimill.figures.calibration import fit_figure
     from taimill.calibration.fit import FitError, fit_drops
-    from taimill.calibration.pairfile import write_pair_file
+    from taimill.calibration.pairfile import is_fitted_pair_file, write_pair_file
     from taimill.errors import ConfigError
-
-    from taimill.model.files import check_output
+    from taimill.model.files import check_output, reads
+    from taimill.model.contact_sets import pair_contact
 
     _check(a.scatter, "--scatter", 0, 1, "(1 s.d. of e)")
     if a.out and not a.out.endswith(".toml"):
         raise ConfigError("command line", "--out", a.out, "a pair file must end in .toml")
+    with reads() as inputs:  # the pair file and the data: --out must not replace them
+        pair_contact(a.pair, law=a.law)
+        data = load_drop_data(a.data)
     if a.out:
-        check_output(a.out, "--out", overwrite=a.overwrite)
-    _check_figure(a)
-    data = load_drop_data(a.data)
+        check_output(a.out, "--out", overwrite=a.overwrite, what="fitted pair file",
+                     ours=is_fitted_pair_file, inputs=inputs)
+    _check_figure(a, inputs)
     try:
         fit = fit_drops(a.pair, data, param=a.param, law=a.law, scatter=a.scatter)
     except FitError as err:
@@ -117,7 +123,6 @@ def cmd_fit(a) -> int:
                  f"outside the scatter (|Δe| > 2σ) at h0 = {', '.join(outside)} mm: the law's e(h0) does not follow the data there")
     if a.out:
         write_pair_file(a.out, a.pair, law=fit["law"], override=fit["override"], name=a.name, comments=[
-            f"Pair file written by `taimill calibrate fit` ({fit['law']}).",
             f"{p} = {fit['value']:.6g} ± {fit['uncertainty']:.2g} {u} fitted to {fit['data']};",
             f"rms e residual {fit['rms_e']:.4f}; use it in a preset as pair = \"{Path(a.out).name}\"."])
         fit["pair_file"] = str(a.out)

@@ -60,10 +60,13 @@ def cmd_jars(a) -> int:
     from taimill.model.jars import jar_names, load_jar
 
     if getattr(a, "jar_command", None) == "show":
-        from taimill.model.files import check_output
+        from taimill.figures import is_figure
+        from taimill.model.files import check_output, reads
 
-        jar = load_jar(a.name, "command line")
-        out = check_output(a.out or f"jar-{jar.name}.png", "--out", overwrite=a.overwrite, suffixes=FIGURE_SUFFIXES)
+        with reads() as inputs:
+            jar = load_jar(a.name, "command line")
+        out = check_output(a.out or f"jar-{jar.name}.png", "--out", overwrite=a.overwrite, suffixes=FIGURE_SUFFIXES,
+                           what="figure", ours=is_figure, inputs=inputs)
         print(draw_jar(jar, out))
         return 0
     names = jar_names()

@@ -6,7 +6,6 @@ what LIGGGHTS cannot express stops with one line and exit code 2."""
 from __future__ import annotations
 
 import json
-import shutil
 import sys
 from pathlib import Path
 
@@ -37,31 +36,33 @@ def register(sub) -> None:
     y.set_defaults(fn=cmd_import)
 
 
-def _check_out(path: str, overwrite: bool) -> None:
+def _check_out(path: str, overwrite: bool, what: str, ours, inputs) -> None:
     """The output folder (case or store) checked like every command's outputs: not
-    empty, not an existing path without --overwrite, its nearest existing folder writable."""
+    empty, not an existing path without --overwrite, with it only an output of its
+    kind taimill wrote and none of the inputs; its nearest existing folder writable."""
     from taimill.model.files import check_output
 
-    check_output(path, "--out", overwrite=overwrite, folder=True)
+    check_output(path, "--out", overwrite=overwrite, folder=True, what=what, ours=ours, inputs=inputs)
 
 
 def cmd_export(a) -> int:
-    from taimill.bridge.liggghts import contact_mapping, export_case
+    from taimill.bridge.liggghts import contact_mapping, export_case, is_case
+    from taimill.model.files import reads
     from taimill.model.preset import load_preset
+    from taimill.store.output import Output
 
-    from taimill.bridge.liggghts import MANIFEST
-    from taimill.errors import ConfigError
-
-    preset = load_preset(a.preset, overrides(a))
+    with reads() as inputs:
+        preset = load_preset(a.preset, overrides(a))
     mapping = contact_mapping(preset, strict=a.strict)  # a refusal leaves an existing --out case untouched
-    _check_out(a.out, a.overwrite)
-    out = Path(a.out)
-    if out.exists():
-        if not out.is_dir() or not ((out / MANIFEST).exists() or not any(out.iterdir())):
-            raise ConfigError("command line", "--out", a.out, "exists and is not an exported case; not replaced")
-        shutil.rmtree(out)
-    result = export_case(preset, a.out, strict=a.strict, dump_mesh=a.dump_mesh, liggghts=a.liggghts,
-                         mapping=mapping)
+    _check_out(a.out, a.overwrite, "LIGGGHTS case", is_case, inputs)
+    # built beside an existing case and swapped in when complete (store/output.py); a
+    # half-written case is of no use, so none is kept
+    with Output(a.out, overwrite=a.overwrite, what="case", kind="LIGGGHTS case",
+                ours=is_case, inputs=inputs, keep=lambda _: False) as out:
+        result = export_case(preset, out.build, strict=a.strict, dump_mesh=a.dump_mesh, liggghts=a.liggghts,
+                             mapping=mapping)
+        out.commit()
+    result.out = Path(a.out)  # where it is now, not where it was built
     for w in result.mapping.warnings:
         print(f"taimill: warning: {w}", file=sys.stderr)
     print(result.describe())
@@ -70,16 +71,21 @@ def cmd_export(a) -> int:
 
 def cmd_import(a) -> int:
     from taimill.bridge.dumps import import_case
+    from taimill.bridge.liggghts import MANIFEST
     from taimill.errors import ConfigError
+    from taimill.store.output import Output
+    from taimill.store.run import is_run_store
 
-    _check_out(a.out, a.overwrite)
+    inputs = [a.case] + ([a.dump] if a.dump else [])  # the case (dumps, deck, STL): --out must not replace it
+    _check_out(a.out, a.overwrite, "run store", is_run_store, inputs)
     if not Path(a.case).is_dir():
         raise ConfigError("command line", "DIR", a.case, "an existing case directory (taimill export liggghts --out)")
-    from taimill.bridge.liggghts import MANIFEST
-
     if not (Path(a.case) / MANIFEST).is_file():  # before the output is touched
         raise ConfigError("command line", "DIR", a.case, f"not a case exported by `taimill export liggghts` (no {MANIFEST})")
-    summary = import_case(a.case, a.out, dump=a.dump)
+    # locked, built beside an existing store and swapped in when complete, as `run` writes
+    with Output(a.out, overwrite=a.overwrite, what="run", kind="run store", ours=is_run_store, inputs=inputs) as out:
+        summary = import_case(a.case, out.build, dump=a.dump)
+        out.commit()
     if a.json:
         print(json.dumps(plain(summary)))
         return 0

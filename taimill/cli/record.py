@@ -32,12 +32,25 @@ def _existing(path: str, key: str, folder: bool) -> Path:
     return p
 
 
-def check_output(path: str, overwrite: bool) -> None:
+RRD_MAGIC = b"RRF"  #: a rerun recording file starts with these bytes (then its format version)
+
+
+def is_recording(path) -> bool:
+    """True if `path` is a rerun recording (what --overwrite may replace)."""
+    try:
+        with open(path, "rb") as f:
+            return f.read(len(RRD_MAGIC)) == RRD_MAGIC
+    except OSError:
+        return False
+
+
+def check_output(path: str, overwrite: bool, inputs=()) -> None:
     """--rrd: a file name ending in .rrd in an existing writable folder; an existing
-    file only with --overwrite."""
+    file only with --overwrite, and only if it is a recording and none of `inputs`."""
     from taimill.model.files import check_output as _check_output
 
-    _check_output(path, "--rrd", overwrite=overwrite, suffixes=(".rrd",))
+    _check_output(path, "--rrd", overwrite=overwrite, suffixes=(".rrd",), what="rerun recording", ours=is_recording,
+                  inputs=inputs)
 
 
 def replay(store, sink) -> None:
@@ -83,7 +96,8 @@ def cmd_record(a) -> int:
     geometry(store)  # StoreError if its config is not a run's
     from taimill.recording.sink import RerunSink  # rerun is slow to import: after the checks
 
-    with Output(a.rrd, overwrite=a.overwrite, option="--rrd", what="recording") as out:  # locked, swapped in at the end
+    with Output(a.rrd, overwrite=a.overwrite, option="--rrd", what="recording", kind="rerun recording",
+                ours=is_recording, inputs=[source]) as out:  # locked, swapped in at the end
         replay(store, RerunSink(out.build, lab_frame=a.lab_frame, histogram_every=a.histogram_every))
         out.commit()
     print(f"{a.rrd}: {len(store.frames['time'])} frames, {len(store.events['t_start'])} events "

@@ -13,6 +13,9 @@ from taimill.model.mechanisms import STRESS_MIN_UN
 
 
 MAX_MIN_UN_MM_S = 1e6  #: --min-un above 1 km/s would count nothing
+# In a report folder: the names of the figures taimill wrote there, the only files
+# `report --overwrite` replaces (a user's own file of a figure's name is kept).
+REPORT_MARK = "taimill-report.json"
 MAX_SAMPLING_RATE = 1e5  #: /s, the highest trajectory rate a preset may store
 
 
@@ -87,6 +90,7 @@ def cmd_report(a) -> int:
         if a.overlay:
             read_overlay(a.overlay)  # its errors before any figure is drawn
         paths = report_sweep(a.run, out, a.format, overlay=a.overlay)
+        _mark(out, paths)
     else:
         from taimill.figures.report import FIGURES, write_report
 
@@ -94,6 +98,7 @@ def cmd_report(a) -> int:
             raise ConfigError("command line", "--overlay", a.overlay, "only for sweep stores (taimill sweep --out)")
         _refuse_existing(out, list(FIGURES), a)
         paths = write_report(_open(a), out, a.format)
+        _mark(out, paths)
     for p in paths:
         print(p)
     return 0
@@ -110,6 +115,30 @@ def _refuse_existing(out: Path, stems, a) -> None:
     for p in there:
         if p.is_dir():
             raise ConfigError("command line", "--out", str(out), f"{p.name} is a folder; a figure would go there")
+    from taimill.figures import is_figure
+    from taimill.model.files import check_replaceable
+
+    ours = _marked(out)
+    for p in there:
+        check_replaceable(p, "--out", f"report figure (listed in {REPORT_MARK})",
+                          lambda q: q.name in ours and is_figure(q))
+
+
+def _marked(out: Path) -> set[str]:
+    """The figures a report wrote in `out` (REPORT_MARK); none if it is not there or not ours."""
+    try:
+        names = json.loads((out / REPORT_MARK).read_text()).get("figures", [])
+        return {n for n in names if isinstance(n, str)}
+    except (OSError, ValueError, AttributeError):
+        return set()
+
+
+def _mark(out: Path, paths) -> None:
+    """Add the figures just written to REPORT_MARK (written whole, then renamed in)."""
+    names = sorted(_marked(out) | {Path(p).name for p in paths})
+    part = out / f"{REPORT_MARK}.partial-{os.getpid()}"
+    part.write_text(json.dumps({"written_by": "taimill report", "figures": names}, indent=1))
+    os.replace(part, out / REPORT_MARK)
 
 
 def _is_sweep(path) -> bool:

@@ -21,14 +21,16 @@ def register(sub) -> None:
 
 def cmd_run(a) -> int:
     from taimill.errors import SimulationUnstable
+    from taimill.model.files import reads
     from taimill.model.preset import load_preset
 
     show_bar = not a.json or sys.stderr.isatty()
-    if sys.stderr.isatty():  # reading and checking 10⁵-10⁶ start positions takes seconds (on a
-        # terminal only: elsewhere the bar's end leaves a blank line before a one-line error)
-        preset = _with_status(f"reading {a.preset}…", load_preset, a.preset, overrides(a))
-    else:
-        preset = load_preset(a.preset, overrides(a))
+    with reads() as inputs:  # the preset and every file it names: no output may replace them
+        if sys.stderr.isatty():  # reading and checking 10⁵-10⁶ start positions takes seconds (on a
+            # terminal only: elsewhere the bar's end leaves a blank line before a one-line error)
+            preset = _with_status(f"reading {a.preset}…", load_preset, a.preset, overrides(a))
+        else:
+            preset = load_preset(a.preset, overrides(a))
     if a.out:  # its folder must exist and be writable (an existing store: Output refuses it without --overwrite)
         from taimill.model.files import check_output
 
@@ -36,23 +38,27 @@ def cmd_run(a) -> int:
     if a.rrd:
         from taimill.cli.record import check_output
 
-        check_output(a.rrd, a.overwrite)
+        check_output(a.rrd, a.overwrite, inputs)
     from taimill.runs.simulation import run
     from taimill.store.output import Outputs
     from taimill.store.sinks import NullSink
 
-    # each output locked, and one that exists replaced only by a finished run (store/output.py)
+    # each output locked, one that exists replaced only if it is a run store (a recording)
+    # taimill wrote and none of the inputs, and only by a finished run (store/output.py)
     with Outputs() as outputs:
         sink = NullSink()
         if a.out:
-            from taimill.store.run import ZarrSink
+            from taimill.store.run import ZarrSink, is_run_store
 
-            sink = ZarrSink(outputs.add(a.out, overwrite=a.overwrite, what="run"))
+            sink = ZarrSink(outputs.add(a.out, overwrite=a.overwrite, what="run", kind="run store", ours=is_run_store,
+                                        inputs=inputs))
         if a.rrd:
+            from taimill.cli.record import is_recording
             from taimill.recording.sink import RerunSink
             from taimill.store.sinks import FanOut
 
-            sink = FanOut(sink, RerunSink(outputs.add(a.rrd, overwrite=a.overwrite, option="--rrd", what="recording")))
+            sink = FanOut(sink, RerunSink(outputs.add(a.rrd, overwrite=a.overwrite, option="--rrd", what="recording",
+                                                      ours=is_recording, inputs=inputs)))
         try:
             if show_bar:
                 summary = _run_with_bar(run, preset, sink)

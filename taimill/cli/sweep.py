@@ -97,19 +97,23 @@ def request(a):
 def cmd_sweep(a) -> int:
     from taimill.cli.common import plain as _plain, stderr_console as _stderr_console
     from taimill.schema import with_units
-    from taimill.runs.sweep import plan, run_sweep
+    from taimill.figures import is_figure
+    from taimill.model.files import check_output, reads
+    from taimill.runs.sweep import content, plan, run_sweep
     from taimill.store.sweep import writing
 
     req, run_kw = request(a)
-    plan(req)  # every point validated before a store is touched or a kernel runs
-    from taimill.model.files import check_output
-
+    with reads() as inputs:
+        points = plan(req)  # every point validated before a store is touched or a kernel runs
     if a.out:  # its folder must exist and be writable (an existing store: the store's own rules)
         check_output(a.out, "--out", overwrite=None)
     if a.map:
-        check_output(a.map, "--map", overwrite=a.overwrite, suffixes=(".png", ".svg", ".pdf"))
-    # locked; an existing store replaced only by a finished sweep (store/sweep.py writing)
-    with writing(a.out, req.identity(), overwrite=a.overwrite) if a.out else contextlib.nullcontext() as store:
+        check_output(a.map, "--map", overwrite=a.overwrite, suffixes=(".png", ".svg", ".pdf"), what="figure",
+                     ours=is_figure, inputs=inputs)
+    # locked; an existing store resumed only with the same content, replaced only by a
+    # finished sweep, and never if it is not a sweep store (store/sweep.py writing)
+    with (writing(a.out, req.identity(), content(req, points), overwrite=a.overwrite, inputs=inputs) if a.out
+          else contextlib.nullcontext()) as store:
         show_bar = not a.json or sys.stderr.isatty()
         if show_bar:
             from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn

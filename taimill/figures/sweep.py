@@ -270,6 +270,8 @@ def read_overlay(path) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray | N
                 raise ConfigError(path, f"line {n}, column {header[c]}", cell, "must be a number (or empty)") from None
             if not math.isfinite(data[r, c]):
                 raise ConfigError(path, f"line {n}, column {header[c]}", cell, "must be finite")
+            if header[c].endswith("_err") and data[r, c] < 0:  # a ± error bar; matplotlib refuses one below 0
+                raise ConfigError(path, f"line {n}, column {header[c]}", cell, "allowed range [0, ∞): an error is ≥ 0")
     k = data[:, header.index("ratio")]
     if np.isnan(k).any():
         n = lines[1 + int(np.flatnonzero(np.isnan(k))[0])][0]

@@ -6,10 +6,15 @@ the key or option, the path and what is wrong.
 Inputs must be regular files (not a folder, device or pipe) of at most MAX_INPUT_BYTES,
 UTF-8 text. A file output needs an existing, writable folder; a folder output (figures,
 recordings) is created with its parents, so its nearest existing ancestor must be a
-writable folder. An existing output is refused unless the command was given --overwrite."""
+writable folder. An existing output is refused unless the command was given --overwrite,
+and even then it is replaced only if it is an output of the same kind that taimill wrote
+and none of the command's inputs (`check_replaceable`): --overwrite must never cost a
+user a file taimill did not make. The files a command reads are collected by `reads()`
+for that check."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import stat
 import tomllib
@@ -20,6 +25,19 @@ from taimill.errors import ConfigError
 MAX_INPUT_BYTES = 64 * 2**20  #: a preset, jar, pair file or measured CSV is far smaller
 PACKAGE = Path(__file__).resolve().parent.parent  #: taimill/, home of the built-in materials
 ROOT = PACKAGE.parent  #: the repository, home of jars/ and presets/
+_READS: list[set] = []  #: the sets of the `reads()` blocks open now
+
+
+@contextlib.contextmanager
+def reads():
+    """The resolved paths of every file read (read_bytes) inside the block, as a set:
+    a command's inputs, which none of its outputs may replace."""
+    seen: set[Path] = set()
+    _READS.append(seen)
+    try:
+        yield seen
+    finally:
+        _READS.remove(seen)
 
 
 def check_path_text(text, source, key, what: str = "a file name") -> str:
@@ -62,7 +80,10 @@ def read_bytes(path, source, key, what: str = "file") -> bytes:
             raise bad(f"cannot read: not a regular file (a device or pipe); need a {what}")
         if st.st_size > MAX_INPUT_BYTES:
             raise bad(f"cannot read: {st.st_size / 2**20:.0f} MiB; need a {what} of at most {MAX_INPUT_BYTES // 2**20} MiB")
-        return p.read_bytes()
+        data = p.read_bytes()
+        for seen in _READS:
+            seen.add(p.resolve())
+        return data
     except FileNotFoundError:
         raise bad(f"cannot read: no such {what}") from None
     except NotADirectoryError:
@@ -93,10 +114,56 @@ def read_toml(path, source, key, what: str = "TOML file") -> dict:
         raise ConfigError(path, key, str(path), "not valid TOML (arrays or tables nested too deeply)") from None
 
 
+def _inside(path: Path, folder: Path) -> bool:
+    try:
+        return path.resolve().is_relative_to(folder.resolve())
+    except (OSError, RuntimeError):  # a symlink loop: not followed
+        return False
+
+
+def check_replaceable(path, key, what: str, ours, *, inputs=(), source: str = "command line") -> None:
+    """Refuse (ConfigError naming the path and why) to replace an existing `path` unless
+    it is an output of this kind that taimill wrote: `ours(path)` is true (a run or sweep
+    store by its attributes, a case by its manifest, a recording or figure by its
+    format…). Never replaced: an input of the command (`inputs`: paths it reads) or a
+    folder holding one, something that is neither a regular file nor a folder (a device,
+    a pipe), or anything `ours` does not recognise, such as a folder of other files.
+    An empty folder holds nothing to lose and may be replaced."""
+    p = Path(path)
+    if not os.path.lexists(p):
+        return
+
+    def bad(why):
+        return ConfigError(source, key, str(path), f"{why}; not replaced")
+
+    for given in map(Path, inputs):
+        if _inside(given, p):
+            raise bad("is an input of this command" if given.resolve() == p.resolve()
+                      else f"holds {given}, an input of this command")
+    try:
+        st = os.stat(p)
+    except OSError as err:
+        raise bad(f"cannot be examined ({err.strerror or err})") from None
+    if stat.S_ISDIR(st.st_mode):
+        try:
+            with os.scandir(p) as entries:
+                empty = not any(entries)
+        except OSError as err:
+            raise bad(f"cannot be examined ({err.strerror or err})") from None
+        if empty:
+            return
+    elif not stat.S_ISREG(st.st_mode):
+        raise bad(f"is not a regular file or folder (a device or pipe), not a {what}")
+    if not ours(p):
+        raise bad(f"exists and is not a {what} written by taimill")
+
+
 def check_output(text, key, *, overwrite: bool | None = False, folder: bool = False, suffixes: tuple[str, ...] = (),
-                 source: str = "command line") -> Path:
+                 source: str = "command line", what: str = "output", ours=None, inputs=()) -> Path:
     """The path a command will write, checked before anything runs. overwrite None:
-    an existing path is the caller's business (stores that resume); False: refused."""
+    an existing path is the caller's business (stores that resume; they check it with
+    check_replaceable); False: refused; True: replaced only if check_replaceable lets
+    it (`what`, `ours`, `inputs`: see there; `ours` None: nothing existing is ours)."""
     text = check_path_text(text, source, key, "a folder name" if folder else "a file name")
     p = Path(text)
 
@@ -114,6 +181,8 @@ def check_output(text, key, *, overwrite: bool | None = False, folder: bool = Fa
                 raise bad("is a folder; need a file name")
             if overwrite is False:
                 raise bad("exists; pass --overwrite to replace it")
+            if overwrite:
+                check_replaceable(p, key, what, ours or (lambda _: False), inputs=inputs, source=source)
             if not os.access(p, os.W_OK):
                 raise bad("exists and is not writable")
             return p

@@ -12,7 +12,9 @@ event table is bit-identical (tests/test_sweep.py).
 from __future__ import annotations
 
 import decimal
+import hashlib
 import itertools
+import json
 import math
 import os
 from dataclasses import dataclass
@@ -21,6 +23,7 @@ from taimill.errors import ConfigError
 from taimill.runs.executors import Job, chunk_seconds, run_dask, run_local
 from taimill.runs.signals import sigterm_interrupts
 from taimill.analysis.sweep import CURVE_COLUMNS, parabolic_peak, refine_candidates
+from taimill.store.run import plain
 from taimill.store.sweep import SweepStore, scalars
 
 # Swept preset keys, outermost first (ratio innermost: a chunk holds neighbouring K).
@@ -31,6 +34,9 @@ AXES = ("jar", "balls.count", "pair", "pair_ball_wall", "friction.mu", "friction
 AXIS_COLUMNS = {"jar": "jar", "balls.count": "balls", "pair": "pair_name", "pair_ball_wall": "pair_ball_wall",
                 "friction.mu": "mu", "friction.mu_r": "mu_r", "plate_rpm": "plate_rpm"}
 MAX_POINTS = 10_000
+# The flattened keys of a resolved configuration each swept file sets: a change to that
+# file is named by them (content).
+FILE_AXES = {"jar": ("jar",), "pair": ("pair", "friction", "ball_ball", "ball_wall"), "pair_ball_wall": ("wall_friction",)}
 MAX_AUTO_BATCH = 16
 
 
@@ -141,8 +147,43 @@ def plan(req: Request, ratios_for=None) -> list[dict]:
                 mu = ov.pop("friction.mu")
                 ov["friction.mu_s"] = ov["friction.mu_d"] = mu
             p = load_preset(req.preset, ov)
-            points.append({"overrides": ov, "values": point_values(p, r), "preset": p})
+            # a jar as given: the built-in CY and a user's CY.toml share a name, not a curve
+            label = {"jar": fixed["jar"]} if "jar" in fixed else {}
+            points.append({"overrides": ov, "values": point_values(p, r) | label, "preset": p})
     return points
+
+
+def flat(config: dict, prefix: str = "") -> dict:
+    """A resolved configuration as {"balls.count": 12, …}; where a file was named from
+    (`source`) is left out: the same files named from another folder are the same sweep."""
+    out = {}
+    for k, v in config.items():
+        if isinstance(v, dict):
+            out |= flat(v, f"{prefix}{k}.")
+        elif k != "source":
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def content(req: Request, points: list[dict]) -> dict:
+    """What the request resolved to, for a sweep store to resume only against the same
+    (taimill.store.sweep): `sha256` of every planned point's resolved configuration
+    (Preset.as_dict: the values of the preset, jar, pair and material files, not their
+    bytes, so a comment edited changes nothing), and `parts` that name a change: the
+    preset's configuration with the fixed overrides, and the keys each swept jar or
+    pair file sets (FILE_AXES)."""
+    from taimill.model.preset import load_preset
+
+    parts = {f"preset {req.preset}": flat(plain(load_preset(req.preset, req.overrides).as_dict()))}
+    digest = hashlib.sha256()
+    for p in points:  # one point at a time: 10⁴ configurations with start positions are large
+        config = flat(plain(p["preset"].as_dict()))
+        digest.update(json.dumps(config, sort_keys=True).encode())
+        for key, names in FILE_AXES.items():
+            label = f"--{key.replace('_', '-')} {p['overrides'].get(key)}"
+            if key in req.axes and label not in parts:
+                parts[label] = {k: x for k, x in config.items() if k.split(".")[0] in names}
+    return {"sha256": digest.hexdigest(), "parts": parts}
 
 
 def point_values(p, replica: int) -> dict:
@@ -180,15 +221,16 @@ def friction_label(p) -> str:
 
 
 def chunks(jobs: list[Job], batch: int) -> list[list[Job]]:
-    """Chunks of at most `batch` jobs with the same ball count and jar (one engine
-    shape per process), the costliest first (longest-processing-time-first balances
-    the workers); cost = ball-steps = balls × duration / dt."""
+    """Chunks of at most `batch` jobs with the same ball count and jar file (one engine
+    shape per process; two jar files may share a name), the costliest first
+    (longest-processing-time-first balances the workers); cost = ball-steps = balls ×
+    duration / dt."""
     def cost(j):
         return j.preset.balls.count * j.preset.duration / j.preset.dt
 
     groups: dict = {}
-    for j in sorted(jobs, key=lambda j: (j.preset.balls.count, j.preset.jar.name, -cost(j), j.index)):
-        groups.setdefault((j.preset.balls.count, j.preset.jar.name), []).append(j)
+    for j in sorted(jobs, key=lambda j: (j.preset.balls.count, j.preset.jar.source, -cost(j), j.index)):
+        groups.setdefault((j.preset.balls.count, j.preset.jar.source), []).append(j)
     out = [g[i:i + batch] for g in groups.values() for i in range(0, len(g), batch)]
     return sorted(out, key=lambda c: -sum(map(cost, c)))
 

@@ -14,7 +14,12 @@
   (atomically where Linux' renameat2 can, else rename aside, rename in) and deletes
   the old one. If the work fails (unstable, interrupted, an error), the old output
   stays as it was and the new partial one is kept beside it under that name; the
-  message says so.
+  message says so. The next writer of the same output that finishes deletes such
+  leftovers of writers no longer running (`leftovers`), naming each on stderr.
+- **Only our own outputs are replaced.** An existing path is replaced (--overwrite) or
+  resumed only if it is an output of the kind being written that taimill wrote
+  (`ours`: a run store, a sweep store, a recording) and no input of the command
+  (`taimill.model.files.check_replaceable`, the one check every writing command uses).
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ import errno
 import fcntl
 import json
 import os
+import re
 import shlex
 import shutil
 import socket
@@ -33,6 +39,7 @@ import time
 from pathlib import Path
 
 from taimill.errors import ConfigError, Interrupted, StoreError, StoreWriteError
+from taimill.model.files import check_replaceable
 
 NO_LOCKS = {errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL}
 
@@ -171,10 +178,35 @@ def swap_in(build, target) -> None:
         remove(aside)
 
 
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process
+        return True
+    return True
+
+
+def leftovers(path) -> list[Path]:
+    """What writers of `path` that did not finish left beside it, if they are no longer
+    running: partial outputs (`partial_path`) and old outputs renamed aside by a swap
+    cut short (`swap_in`: PATH.old-PID)."""
+    p = Path(path)
+    suffix = p.suffix
+    stem = p.name[: -len(suffix)] if suffix else p.name
+    name = re.compile(rf"{re.escape(stem)}\.partial-(\d+){re.escape(suffix)}|{re.escape(p.name)}\.old-(\d+)")
+    try:
+        beside = sorted(p.absolute().parent.iterdir())
+    except OSError:
+        return []
+    return [q for q in beside if (m := name.fullmatch(q.name)) and not _running(int(m.group(1) or m.group(2)))]
+
+
 class Output:
     """One output path written by this process (module doc):
 
-        with Output("RUN.zarr", overwrite=True, what="run") as out:
+        with Output("RUN.zarr", overwrite=True, what="run", kind="run store", ours=is_run_store) as out:
             ...write into out.build...
             out.commit()
 
@@ -183,18 +215,24 @@ class Output:
     Leaving the block without commit() (an error, an interrupt) keeps an existing
     output unchanged; the partial one stays beside it if `keep(build)` says it holds
     anything worth keeping (default: it exists), else it is deleted. An interrupt
-    leaves as an `Interrupted` whose message says where things are."""
+    leaves as an `Interrupted` whose message says where things are. An existing path
+    is replaced or reused only if `ours(path)` says it is an output of this kind and it
+    is none of `inputs` (the files the command reads): check_replaceable, whose refusal
+    calls it a `kind` (default: `what`)."""
 
-    def __init__(self, path, *, overwrite: bool = False, reuse: bool = False, option: str = "--out",
-                 what: str = "output", keep=None):
+    def __init__(self, path, *, ours, overwrite: bool = False, reuse: bool = False, option: str = "--out",
+                 what: str = "output", kind: str | None = None, keep=None, inputs=()):
         self.path = Path(path)
         self.overwrite, self.reuse, self.option, self.what = overwrite, reuse, option, what
+        self.ours, self.kind, self.inputs = ours, kind or what, tuple(inputs)
         self.keep = keep or os.path.lexists
         self.lock = OutputLock(path)
         self.build = self.path
         self.replacing = self.committed = False
 
     def __enter__(self) -> "Output":
+        if self.overwrite or self.reuse:  # before the lock: a refusal leaves no trace beside a user's file
+            check_replaceable(self.path, self.option, self.kind, self.ours, inputs=self.inputs)
         self.lock.acquire()
         try:
             exists = os.path.lexists(self.path)
@@ -210,7 +248,8 @@ class Output:
         return self
 
     def commit(self) -> None:
-        """The work is complete: the new output takes the path (module doc)."""
+        """The work is complete: the new output takes the path, and leftovers of earlier
+        writers of it that did not finish are deleted (module doc)."""
         if self.replacing:
             try:
                 swap_in(self.build, self.path)
@@ -218,6 +257,14 @@ class Output:
                 raise StoreWriteError(self.path, "replace", f"could not put {self.build} in its place ({err}); "
                                       f"{self.path} is unchanged or beside it as {self.path.name}.old-{os.getpid()}") from None
         self.committed = True
+        for q in leftovers(self.path):
+            if self.ours(q):  # a user's file that happens to match the name stays
+                try:
+                    remove(q)
+                except OSError:
+                    continue
+                print(f"taimill: removed {q}, left by an earlier writer of {self.path} that did not finish",
+                      file=sys.stderr)
 
     def kept(self) -> str:
         """Where the output of unfinished work is, for the one-line message."""

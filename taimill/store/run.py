@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import asyncio
 import io
+import json
 import math
 import os
 import uuid
@@ -389,6 +390,19 @@ def frame_chunk_rows(rate) -> int:
     if not rate or not math.isfinite(rate) or rate <= 0:
         return lo
     return int(min(hi, max(lo, 1 << max(0, math.ceil(math.log2(rate * FRAME_CHUNK_SECONDS))))))
+
+
+def is_run_store(path) -> bool:
+    """True if `path` is a run store taimill wrote: a zarr group whose attributes hold
+    the schema_version and config ZarrSink.start writes first (also a killed or
+    unfinished run's). Read from zarr.json itself: no zarr error to sort out for a
+    folder of other files."""
+    try:
+        meta = json.loads((Path(path) / "zarr.json").read_text())
+        attrs = meta.get("attributes") or {}
+        return meta.get("node_type") == "group" and {"schema_version", "config"} <= set(attrs) and "kind" not in attrs
+    except (OSError, ValueError, AttributeError, TypeError):
+        return False
 
 
 class ZarrSink:

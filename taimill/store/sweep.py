@@ -3,7 +3,8 @@
 Layout:
 
     attrs:   kind = "sweep", schema_version, sweep (what was asked: preset, overrides,
-             axes, replicas — a re-run with the same request resumes), plan (per point:
+             axes, replicas — a re-run with the same request resumes), content (what
+             the request resolved to: sha256 and parts, see below), plan (per point:
              key, overrides, values), refine (metric, rounds, peaks; after --refine)
     points/p00000, p00001, …   each a normal run store written by store.ZarrSink(group):
                                store.open_run(group) and the analysis work on it
@@ -18,7 +19,13 @@ is written after its group is finished, and `done` last; readers use rows with `
 A killed sweep re-run with the same request skips every finished point (a point whose
 group finished but whose row was not yet marked is re-indexed from the group's summary;
 a point group that is damaged is re-run) and re-runs the rest, which is seeded and so
-gives the same result. With overwrite an existing store is replaced only when the new
+gives the same result, but only if the request still resolves to the same content: the
+`content` attribute holds the sha256 of every planned point's resolved configuration
+(taimill.runs.sweep.content: the preset's, jar, pair and material files' values, not
+their bytes) and the parts that name a change (the preset's, each swept jar's and
+pair's); a changed one is refused, naming the part and keys that changed (a store
+written before content was recorded resumes unchecked). With overwrite an existing
+store is replaced only when the new
 sweep has finished (built beside it, then swapped in). Reading names damaged parts
 (StoreError): unreadable metadata or chunks, a missing array, group or point.
 """
@@ -65,16 +72,19 @@ def _any_done(path) -> bool:
 
 
 @contextlib.contextmanager
-def writing(path, request: dict, *, overwrite: bool = False):
+def writing(path, request: dict, content: dict | None = None, *, overwrite: bool = False, inputs=()):
     """The store for `request` at `path` (`SweepStore.create`), locked for this process
-    while the block runs (a second writer is refused, naming this one). Without
-    overwrite an existing store of the same request is resumed in place. With it an
+    while the block runs (a second writer is refused, naming this one). An existing
+    path that is not a sweep store, or is one of the command's `inputs` or holds one,
+    is refused, --overwrite or not (output.Output). Without overwrite an existing store
+    of the same request and `content` is resumed in place. With it an
     existing store stays untouched until the block ends without error: the new sweep
     is built beside it (SWEEP.partial-PID.zarr) and then swapped in. A sweep that fails
     or is interrupted leaves the old store as it was and keeps the partial one beside it
     if it finished a point (else deletes it); the error says where things are."""
-    with Output(path, overwrite=overwrite, reuse=True, what="sweep", keep=_any_done) as out:
-        yield SweepStore.create(out.build, request, overwrite=out.replacing)
+    with Output(path, overwrite=overwrite, reuse=True, what="sweep", kind="sweep store", ours=is_sweep,
+                keep=_any_done, inputs=inputs) as out:
+        yield SweepStore.create(out.build, request, content, overwrite=out.replacing)
         out.commit()
 
 
@@ -87,22 +97,26 @@ class SweepStore:
 
     # ---------------------------------------------------------------- opening
     @classmethod
-    def create(cls, path, request: dict, *, overwrite: bool = False) -> "SweepStore":
-        """A new store for `request`, or the existing one for the same request (resume).
-        An existing store of another sweep, or anything else, needs overwrite."""
+    def create(cls, path, request: dict, content: dict | None = None, *, overwrite: bool = False) -> "SweepStore":
+        """A new store for `request`, or the existing one for the same request and
+        content (resume; module doc). An existing store of another sweep needs
+        overwrite; anything else at `path` is the caller's to refuse (`writing`)."""
         path = Path(path)
         request = plain(request)
-        if path.exists() and not overwrite:
-            if not is_sweep(path):
-                raise ConfigError("command line", "--out", str(path), "exists and is not a sweep store; pass --overwrite to replace it")
+        if is_sweep(path) and not overwrite:
             old = open_sweep(path, mode="r+")
             if old.request != request:
                 changed = sorted(k for k in set(request) | set(old.request) if request.get(k) != old.request.get(k))
                 raise ConfigError("command line", "--out", str(path),
                                   f"holds a different sweep ({', '.join(changed)} differ); pass --overwrite to replace it, or resume it with the same arguments")
+            before = old.root.attrs.get("content")
+            if content is not None and before is not None and before.get("sha256") != content["sha256"]:
+                raise StoreError(path, "resume", f"{changes(before, plain(content))}; pass --overwrite to start the "
+                                 "sweep again, or restore what changed to resume it")
             return old
         root = zarr.open_group(path, mode="w")
-        root.attrs.update({"kind": "sweep", "schema_version": SCHEMA_VERSION, "sweep": request, "plan": []})
+        root.attrs.update({"kind": "sweep", "schema_version": SCHEMA_VERSION, "sweep": request, "plan": []}
+                          | ({"content": plain(content)} if content is not None else {}))
         root.create_group("points")
         table = root.create_group("table", attributes={"description": "one row per planned point; rows with done = true are valid"})
         table.create_array("done", shape=(0,), chunks=(TABLE_CHUNK,), dtype=bool, fill_value=False, dimension_names=("point",))
@@ -235,6 +249,26 @@ def open_sweep(path, mode: str = "r") -> SweepStore:
     if not isinstance(plan, list) or not all(isinstance(p, dict) and {"key", "overrides", "values"} <= set(p) for p in plan):
         raise StoreError(path, "attrs.plan", "not a list of planned points (key, overrides, values)")
     return store
+
+
+def changes(before: dict, now: dict, shown: int = 3) -> str:
+    """What differs between two `content` attributes, for the refusal to resume:
+    "preset P changed since the sweep started: balls.count 12 → 24, …" for the first
+    part that changed (parts: label → {key: value}); the points as a whole otherwise."""
+    old_parts, new_parts = before.get("parts", {}), now.get("parts", {})
+    for label in dict.fromkeys([*new_parts, *old_parts]):
+        a, b = old_parts.get(label, {}), new_parts.get(label, {})
+        keys = [k for k in dict.fromkeys([*b, *a]) if a.get(k, "(none)") != b.get(k, "(none)")]
+        if keys:
+            text = ", ".join(f"{k} {_short(a.get(k, '(none)'))} → {_short(b.get(k, '(none)'))}" for k in keys[:shown])
+            more = f" and {len(keys) - shown} more" if len(keys) > shown else ""
+            return f"{label} changed since the sweep started: {text}{more}"
+    return "the resolved configuration of the planned points changed since the sweep started"
+
+
+def _short(v) -> str:
+    text = v if isinstance(v, str) else f"{v:.6g}" if isinstance(v, float) else json.dumps(v, ensure_ascii=False)
+    return text if len(text) <= 40 else text[:39] + "…"
 
 
 def scalars(summary: dict) -> dict:

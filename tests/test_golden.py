@@ -36,6 +36,7 @@ CASES = {
     "hm-fluorite-hertz-mindlin": ("presets/p4-hm-fluorite.toml", ["--duration", "0.6", "--seed", "2", "--ratio", "-3.0",
                                                                   "--law", "hertz-mindlin"]),
     "hm-rolling": ("tests/golden/hm-rolling.toml", []),
+    "cy-history": ("tests/golden/cy-history.toml", []),  # the sub-models with a per-contact history
 }
 # Summary entries that measure the machine, not the run.
 TIMING_KEYS = ("wall_seconds", "realtime_factor")

@@ -20,7 +20,7 @@ def written(path: Path, record: str) -> list[str]:
 
 
 def test_kernel_writes_every_event_column_once_by_name():
-    names = written(PHYSICS / "contacts.py", "EV")
+    names = written(PHYSICS / "events.py", "EV")
     assert sorted(names) == sorted(k for k in EVENT_COLUMNS if k not in DERIVED_EVENT_COLUMNS)
 
 

@@ -219,3 +219,23 @@ def test_energy_ledger_closes_with_springs_storing_energy(friction):
     assert abs(s["energy_balance_error"]) < 0.01, s["energy_balance_error"]
     parts = sum(p for kind in s["dissipation_by_mechanism"].values() for cls in kind.values() for p in cls.values())
     assert parts == pytest.approx(s["dissipated_power"], rel=0.01)
+
+
+def test_a_batch_mixing_contact_models_equals_each_model_alone():
+    # A sweep over pairs may batch mills whose contact models differ: the kernel then
+    # holds each and picks a mill's by its index. Each mill's run must be bit-identical
+    # to its run in an engine compiled for its model alone.
+    p = load_preset("presets/p4-cy-steel.toml", {"duration": 0.05, "ratio": -2.2})
+    from taimill.model.spec import from_preset
+
+    base = from_preset(p)
+    hist = base.replace(friction=Friction("t", 0.8, 0.8, 1e-3, 1e-2, 0.05, "history", "epsd2"))
+    mixed = Runner([base, hist])
+    mixed.run([MemorySink(), MemorySink()])
+    assert [len(m) for m in mixed.engine.F.models] == [2, 2]
+    for b, spec in enumerate((base, hist)):
+        alone = Runner([spec])
+        alone.run([MemorySink()])
+        assert len(alone.engine.F.models[0]) == 1
+        for k in ("x", "v", "s"):
+            assert np.array_equal(mixed.final_state(b)[k], alone.final_state(0)[k]), (b, k)

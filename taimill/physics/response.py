@@ -25,11 +25,10 @@ def contact_response(F: ti.template(), b, ct: ti.template(), u, nrm, vrel, m_eff
     overlap u, unit normal nrm (first body → second), relative contact-point velocity
     vrel, tangential history xi (zero for a new contact; kept only by history models).
     Returns (force, u̇, slip, F_n, elastic F_n, friction force, new tangential history,
-    its stored energy). The contact model
-    is the engine's only one for ct (F.models[ct], compiled in), or, when a batch mixes
-    models, the one F.variant[b, ct] picks among them. Rolling resistance (if on) is
-    added by the caller, who knows the spins; its work is booked with the friction work
-    (the shear part of the contact's dissipation)."""
+    its stored energy). The contact model is the engine's only one for ct (F.models[ct],
+    compiled in), or, when a batch mixes models, the one F.variant[b, ct] picks among
+    them. Rolling resistance (if on) is added by the caller, who knows the spins; its
+    work is booked with the friction work (the shear part of the contact's dissipation)."""
     udot = vrel.dot(nrm)
     slip = vrel - udot * nrm
     fn, fel, e_t = 0.0, 0.0, 0.0

@@ -324,6 +324,11 @@ class LiveMill:
             d_ = check("mu_d", mu_d) if mu_d is not None else fr.mu_d
             r_ = check("mu_r", mu_r) if mu_r is not None else fr.mu_r
             rules.friction_order(SOURCE, "mu_d", s_, d_)
+            if (fr.tangential, fr.rolling) != (self.frictions[ct].tangential, self.frictions[ct].rolling):
+                # the running kernels are compiled for the mill's sub-models (physics.state)
+                raise ConfigError(SOURCE, "pair", pair, f"its sub-models ({fr.tangential}, {fr.rolling}) differ from the "
+                                  f"running mill's ({self.frictions[ct].tangential}, {self.frictions[ct].rolling}); "
+                                  "they are chosen in the preset")
             name = fr.name if (s_, d_, r_) == (fr.mu_s, fr.mu_d, fr.mu_r) else f"{(pair or self.preset.pair)} (tuned)"
             new[ct] = dataclasses.replace(fr, name=name, mu_s=s_, mu_d=d_, mu_r=r_)
         wall = new[1] if new[1] != new[0] else None

@@ -523,6 +523,8 @@ EXPORT_REFUSALS = {
                                                   ["friction_ball_wall.mu_r", "0.1", "ball-wall rolling"]),
     "ball-ball rolling resistance with --strict": (GOOD_PRESET + "[friction_ball_ball]\nmu_r = 0.05\n", ["--strict"],
                                                    ["friction_ball_ball.mu_r", "0.05", "rolling_friction cdt"]),
+    "epsd2 at the turning wall with --strict": (GOOD_PRESET + '[friction]\nrolling = "epsd2"\nmu_r = 0.05\n', ["--strict"],
+                                                ["friction.mu_r", "0.05", "ground-frame spin"]),
 }
 # name -> (jar text, words); each is given to `run --jar` and to `jars show`
 JARS = {

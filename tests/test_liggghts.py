@@ -164,6 +164,92 @@ def test_rolling_resistance_is_cdt_for_ball_ball_and_refused_for_the_turning_wal
         run_liggghts(tmp_path / "c")
 
 
+SAME_MODELS = {"law": "hertz-mindlin", "friction.tangential": "history", "friction.rolling": "epsd2",
+               "friction.mu_r": 0.05, "duration": 0.005, "ramp_time": 0.002}
+SAME_MODELS_DECK = "model hertz tangential history rolling_friction epsd2"
+SAME_MODELS_SETTINGS = "limitForce on tangential_damping off"
+
+
+def test_history_and_epsd2_are_exported_exactly(tmp_path):
+    # tangential = history: LIGGGHTS `tangential history` without tangential damping and
+    # μ = μ_d (this preset's μ_s = 1.0 is not read by the model: no stiction warning);
+    # rolling = epsd2: `rolling_friction epsd2` with μ_r, on the pair style and the wall fix
+    p = load_preset("presets/p4-cy-steel.toml", SAME_MODELS)
+    assert p.friction.mu_s == 1.0 and p.friction.mu_d == 0.8
+    m = contact_mapping(p)
+    assert m.friction == {"ball_ball": 0.8, "ball_wall": 0.8}
+    assert m.rolling == {"ball_ball": 0.05, "ball_wall": 0.05}
+    assert m.rolling_models == {"ball_ball": "epsd2", "ball_wall": "epsd2"}
+    assert any("tangential = history" in n and "exact" in n for n in m.notes)
+    assert any("rolling resistance (ball-ball): rolling = epsd2" in n and "exact" in n for n in m.notes)
+    # the only approximation: the wall contact's spin (ground frame in LIGGGHTS)
+    assert len(m.warnings) == 1 and "ground-frame spin" in m.warnings[0] and "ball-wall" in m.warnings[0]
+    with pytest.raises(ConfigError, match=r"friction\.mu_r = 0\.05: rolling = epsd2.*ground-frame spin"):
+        contact_mapping(p, strict=True)
+    export_case(p, tmp_path / "c")
+    case = tmp_path / "c"
+    assert _deck_line(case, "pair_style") == f"pair_style gran {SAME_MODELS_DECK} {SAME_MODELS_SETTINGS}"
+    assert _deck_line(case, "fix walls") == (f"fix walls all wall/gran {SAME_MODELS_DECK} mesh n_meshes 1 meshes jar "
+                                             f"{SAME_MODELS_SETTINGS}")
+    assert _deck_line(case, "fix m4 ").endswith("coefficientFriction peratomtypepair 2 0.8 0.8 0.8 0.8")
+    assert _deck_line(case, "fix m8 ").endswith("coefficientRollingFriction peratomtypepair 2 0.05 0.05 0.05 0.05")
+    # with rolling resistance on ball-ball contacts only, the whole mapping is exact
+    bb_only = contact_mapping(load_preset("presets/p4-cy-steel.toml", {**SAME_MODELS, "friction_ball_wall.mu_r": 0.0}),
+                              strict=True)
+    assert not bb_only.warnings and bb_only.rolling_models == {"ball_ball": "epsd2"}
+    assert bb_only.rolling == {"ball_ball": 0.05, "ball_wall": 0.0}
+    # under kelvin-voigt LIGGGHTS' tangential spring is hooke/stiffness' constant kt, not Mindlin's
+    kv = load_preset("presets/p4-cy-steel.toml", {**SAME_MODELS, "law": "kelvin-voigt", "friction.mu_r": 0.0})
+    assert any("kelvin-voigt" in w and "2/7 kn" in w for w in contact_mapping(kv).warnings)
+    with pytest.raises(ConfigError, match=r"friction\.tangential = 'history': tangential = history with kelvin"):
+        contact_mapping(kv, strict=True)
+
+
+def test_each_contact_kind_is_written_with_its_own_sub_models(tmp_path):
+    # pair_style holds the ball-ball models and the wall fix its own, so mixed sub-models
+    # map kind by kind (LIGGGHTS 3.8 accepts different models in the two commands)
+    base = {"law": "hertz-mindlin", "friction.mu_s": 0.8, "duration": 0.005, "ramp_time": 0.002}
+    p = load_preset("presets/p4-cy-steel.toml", {**base, "friction_ball_ball.tangential": "history",
+                                                  "friction_ball_ball.mu_r": 0.05,
+                                                  "friction_ball_wall.rolling": "epsd2",
+                                                  "friction_ball_wall.mu_r": 0.02})
+    m = contact_mapping(p)
+    assert m.tangential_settings == {"ball_ball": ["tangential_damping off"], "ball_wall": []}
+    assert m.rolling_models == {"ball_ball": "cdt", "ball_wall": "epsd2"}
+    assert any(n.startswith("friction (ball-ball): tangential = history") for n in m.notes)
+    assert any(n.startswith("friction (ball-wall): Coulomb μ = 0.8") for n in m.notes)
+    export_case(p, tmp_path / "c")
+    assert _deck_line(tmp_path / "c", "pair_style") == ("pair_style gran model hertz tangential history "
+                                                         "rolling_friction cdt limitForce on tangential_damping off")
+    assert _deck_line(tmp_path / "c", "fix walls").endswith("tangential history rolling_friction epsd2 mesh n_meshes 1 "
+                                                            "meshes jar limitForce on")
+    assert _deck_line(tmp_path / "c", "fix m8 ").endswith("peratomtypepair 2 0.05 0.02 0.02 0.02")
+    # constant-torque rolling at the turning wall stays refused, whatever the ball-ball model
+    with pytest.raises(ConfigError, match=r"friction_ball_wall\.mu_r = 0\.02: ball-wall rolling resistance"):
+        contact_mapping(load_preset("presets/p4-cy-steel.toml", {**base, "friction_ball_ball.rolling": "epsd2",
+                                                                 "friction_ball_wall.mu_r": 0.02}))
+    if LIGGGHTS:  # the mixed deck is valid LIGGGHTS (~0.005 s of the mill)
+        run_liggghts(tmp_path / "c")
+
+
+@needs_liggghts
+def test_history_and_epsd2_case_runs_in_liggghts(tmp_path):
+    # 0.02 s of the CY start-up (12 balls settling onto the floor and the wall: sticking
+    # contacts load both springs) with history and epsd2 on both kinds: no error, no
+    # lost atom, the dumps complete and every ball still inside the jar (~5 s)
+    p = load_preset("presets/p4-cy-steel.toml", {**SAME_MODELS, "duration": 0.02, "ramp_time": 0.01})
+    export_case(p, tmp_path / "case")
+    run_liggghts(tmp_path / "case")
+    log = (tmp_path / "case" / "log.liggghts").read_text().splitlines()  # the commands LIGGGHTS ran, echoed
+    assert f"pair_style gran {SAME_MODELS_DECK} {SAME_MODELS_SETTINGS}" in log
+    assert any(line.startswith("fix walls") and line.endswith(SAME_MODELS_SETTINGS) for line in log)
+    assert dumps.import_case(tmp_path / "case", tmp_path / "run.zarr")["status"] == "complete"
+    x = open_run(tmp_path / "run.zarr").frames["position"]
+    assert x.shape[1] == p.balls.count
+    phi = RunGeometry.from_config(p.as_dict(), np.full(p.balls.count, p.balls.radius)).sdf(x[-1, :, :2])[0]
+    assert (phi > p.balls.radius - 1e-4).all()
+
+
 def test_a_refused_export_leaves_an_existing_case_alone(tmp_path):
     from taimill.cli import main
 

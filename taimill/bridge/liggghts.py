@@ -41,7 +41,8 @@ from taimill.bridge.mesh import TOLERANCE, JarMesh, jar_mesh, write_stl
 from taimill.errors import ConfigError
 from taimill.model import laws as laws_np
 from taimill.model.contact.damping import damping_ratio
-from taimill.model.contact.registry import law_by_name
+from taimill.model.contact import rolling, rolling_epsd2, tangential, tangential_history
+from taimill.model.contact.registry import ROLLING, TANGENTIAL, law_by_name
 from taimill.model.materials import load_material
 from taimill.model.preset import Preset
 from taimill.model.rules import max_impact_speed
@@ -75,7 +76,13 @@ class Mapping:
     """How taimill's contact model is expressed in LIGGGHTS, with what could not be."""
 
     normal: str  #: LIGGGHTS normal model (`hertz` or `hooke/stiffness`)
-    tangential: str  #: LIGGGHTS tangential model
+    tangential: str  #: LIGGGHTS tangential model of ball-ball contacts (tangential_models has both kinds)
+    #: "ball_ball"/"ball_wall" -> LIGGGHTS tangential model
+    tangential_models: dict = field(default_factory=dict)
+    #: "ball_ball"/"ball_wall" -> the LIGGGHTS settings its tangential model needs (e.g. ["tangential_damping off"])
+    tangential_settings: dict = field(default_factory=dict)
+    #: "ball_ball"/"ball_wall" -> LIGGGHTS rolling_friction model (cdt, epsd2); absent: no rolling resistance
+    rolling_models: dict = field(default_factory=dict)
     restitution: dict = field(default_factory=dict)  #: "ball_ball"/"ball_wall" -> LIGGGHTS input e
     stiffness: dict = field(default_factory=dict)  #: hooke/stiffness only: kn, gamman per contact type
     friction: dict = field(default_factory=dict)  #: "ball_ball"/"ball_wall" -> LIGGGHTS coefficientFriction
@@ -120,10 +127,11 @@ def contact_mapping(preset: Preset, *, strict: bool = False) -> Mapping:
     (with `strict`, also for what would only be approximated)."""
     bb, bw = preset.ball_ball, preset.ball_wall
     law = bb.law
-    rolling = _rolling(preset, strict)
-    m = Mapping(normal="hertz", tangential="history", friction=_friction(preset, strict), rolling=rolling.pop("mu_r"))
-    m.notes += rolling.get("notes", [])
-    m.warnings += rolling.get("warnings", [])
+    mu_r, rolling_models, r_notes, r_warnings = _rolling(preset, strict)  # its refusals first, as before
+    mu, models, settings, notes, warnings = _tangential(preset, strict)
+    m = Mapping(normal="hertz", tangential=models["ball_ball"], tangential_models=models,
+                tangential_settings=settings, friction=mu, rolling=mu_r, rolling_models=rolling_models,
+                notes=notes + r_notes, warnings=warnings + r_warnings)
     if law == "hertz-mindlin":
         for name, c in (("ball_ball", bb), ("ball_wall", bw)):
             m.restitution[name] = _liggghts_restitution(c.c)
@@ -139,6 +147,17 @@ def contact_mapping(preset: Preset, *, strict: bool = False) -> Mapping:
             "normal: kelvin-voigt = LIGGGHTS `model hooke/stiffness` with absolute_damping on and limitForce on "
             f"(kn = {bb.k:.4g} / {bw.k:.4g} N/m, gamman = {bb.c:.4g} / {bw.c:.4g} N·s/m ball-ball / ball-wall); "
             "its tangential spring kt = 2/7 kn, tangential damping off")
+        mindlin = [(k, f.tangential) for k, f in zip(("ball_ball", "ball_wall"), preset.frictions)
+                   if TANGENTIAL_EXPORT[f.tangential].mindlin]
+        if mindlin:  # LIGGGHTS' hooke/stiffness spring is the constant kt above, taimill's Mindlin's
+            kind, name = mindlin[0]
+            text = (f"tangential = {name} with kelvin-voigt: taimill's tangential spring is Mindlin's "
+                    "k_t = 8 G* √(R* u) whatever the normal law, LIGGGHTS' `hooke/stiffness` one is the constant kt "
+                    "= 2/7 kn; the same cap μ_d |F_n|")
+            if strict:
+                raise ConfigError(preset.source, _key(preset, kind, "tangential"), name,
+                                  text + "; use law = \"hertz-mindlin\", or export without --strict to map it")
+            m.warnings.append(text)
     else:
         speeds = np.array([0.5, 2.0, 6.0])
         e_bb = _restitution_at(bb, [bb.u_ref])[0]
@@ -157,68 +176,123 @@ def contact_mapping(preset: Preset, *, strict: bool = False) -> Mapping:
     return m
 
 
-def _friction(preset: Preset, strict: bool) -> dict:
-    """LIGGGHTS' Coulomb coefficient per contact kind ("ball_ball"/"ball_wall" -> μ):
-    `coefficientFriction` is a per-type-pair property and the wall is its own atom
-    type, so a coated jar (`pair_ball_wall`) maps exactly. Stiction μ_s > μ_d has no
-    counterpart: μ = μ_d with a warning, or refused with `strict`."""
-    mu = {}
+# Each taimill tangential / rolling sub-model (by its registry name) and how the export
+# writes it: LIGGGHTS' pair_style sets the models of ball-ball contacts and the wall fix
+# its own, so each contact kind is written with its own sub-models (the installed 3.8
+# accepts different ones in the two commands).
+
+
+@dataclass(frozen=True)
+class TangentialExport:
+    """How one tangential sub-model is written for LIGGGHTS."""
+
+    keyword: str  #: LIGGGHTS `tangential` model
+    settings: tuple  #: settings it needs after the model (none: LIGGGHTS' defaults)
+    stiction: bool  #: reads μ_s, which one Coulomb coefficient cannot express when μ_s > μ_d
+    note: str  #: the mapping line; {mu} is μ_d (-), {v_s} v_s (mm/s)
+    mindlin: bool = False  #: taimill's spring is Mindlin's k_t: exact only under LIGGGHTS' `model hertz`
+
+
+@dataclass(frozen=True)
+class RollingExport:
+    """How one rolling sub-model is written for LIGGGHTS: `exact` (a note), `approximate`
+    (a warning; refused with --strict) or `refused` per contact kind."""
+
+    keyword: str  #: LIGGGHTS `rolling_friction` model
+    ball_ball: str  #: exact | approximate
+    ball_wall: str  #: approximate | refused
+    text: dict  #: kind -> the mapping line (or the refusal); {mu_r} is μ_r (-)
+
+
+TANGENTIAL_EXPORT = {
+    tangential.REGULARISED_COULOMB.name: TangentialExport(
+        "history", (), True,
+        "Coulomb μ = {mu:g} (LIGGGHTS `tangential history`: a tangential spring capped at μ F_n; taimill's "
+        "regularisation below v_s = {v_s:g} mm/s has no counterpart, the sliding force is the same)"),
+    tangential_history.HISTORY.name: TangentialExport(
+        "history", ("tangential_damping off",), False,
+        "tangential = history, μ_d = {mu:g}: LIGGGHTS `tangential history` with `tangential_damping off` and "
+        "coefficientFriction μ_d, exact (the same spring k_t = 8 G* √(R* δ) on the same projected history, capped "
+        "at μ_d |F_n|; μ_s, v_s and v_d are not read by this model)", mindlin=True),
+}
+ROLLING_EXPORT = {
+    rolling.CONSTANT_TORQUE.name: RollingExport("cdt", "approximate", "refused", {
+        "ball_ball": "μ_r = {mu_r:g} as LIGGGHTS `rolling_friction cdt` (the same torque μ_r R* F_n against "
+                     "ω_i − ω_j), except that LIGGGHTS takes F_n without its damping part and has no cap: near "
+                     "ω_r = 0 its torque flips sign every step where taimill's settles the rolling",
+        "ball_wall": "ball-wall rolling resistance has no LIGGGHTS equivalent in a turning jar (its wall contacts "
+                     "brake the ball's ground-frame spin, taimill's the spin relative to the wall); set it to 0 to "
+                     "export, or use rolling = \"epsd2\""}),
+    rolling_epsd2.EPSD2.name: RollingExport("epsd2", "exact", "approximate", {
+        "ball_ball": "rolling = epsd2, μ_r = {mu_r:g}: LIGGGHTS `rolling_friction epsd2` with "
+                     "coefficientRollingFriction μ_r, exact (the same spring k_r = k_t R*² on ω_i − ω_j "
+                     "projected on the tangent plane, capped at μ_r R* |F_n|, no dashpot)",
+        "ball_wall": "rolling = epsd2, μ_r = {mu_r:g}: LIGGGHTS `rolling_friction epsd2` on the wall fix, the same "
+                     "spring and cap, except the spin it loads: LIGGGHTS' wall contacts take the ball's ground-frame "
+                     "spin (a mesh has no spin of its own), taimill's the spin relative to the jar wall, which turns "
+                     "with the jar; a ball carried round by the wall at the jar's spin loads LIGGGHTS' spring until it "
+                     "slips at μ_r R |F_n| and taimill's not at all"}),
+}
+
+
+def _key(preset: Preset, kind: str, name: str) -> str:
+    """The preset key a refusal names: friction.NAME, or friction_KIND.NAME when the
+    contact kinds have their own friction."""
+    return f"friction.{name}" if preset.wall_friction is None else f"friction_{kind}.{name}"
+
+
+def _tangential(preset: Preset, strict: bool) -> tuple[dict, dict, dict, list, list]:
+    """(μ, LIGGGHTS model, its settings; each per kind, notes, warnings) of the
+    tangential sub-models (TANGENTIAL_EXPORT):
+    LIGGGHTS' `coefficientFriction` is a per-type-pair property and the wall is its own
+    atom type, so a coated jar (`pair_ball_wall`) maps exactly. Stiction μ_s > μ_d of
+    the regularised Coulomb model has no counterpart: μ = μ_d with a warning, or
+    refused with `strict`."""
+    mu, models, settings, notes, warnings = {}, {}, {}, [], []
+    fbb, fbw = preset.frictions
+    same = (fbb.tangential, fbb.mu_s, fbb.mu_d) == (fbw.tangential, fbw.mu_s, fbw.mu_d)
     for kind, f in zip(("ball_ball", "ball_wall"), preset.frictions):
-        mu[kind] = f.mu_d
-        if f.mu_s != f.mu_d and strict:
+        t = TANGENTIAL_EXPORT[TANGENTIAL[f.tangential].name]
+        mu[kind], models[kind], settings[kind] = f.mu_d, t.keyword, list(t.settings)
+        where = "" if same else f" ({kind.replace('_', '-')})"
+        stiction = t.stiction and f.mu_s != f.mu_d
+        if stiction and strict:
             key = "pair" if preset.wall_friction is None else f"pair_{kind}"
             raise ConfigError(preset.source, key, f.name,
                               f"stiction μ_s = {f.mu_s:g} > μ_d = {f.mu_d:g} ({kind.replace('_', '-')}) has no "
-                              "LIGGGHTS equivalent (set mu_s = mu_d, or export without --strict to map μ = μ_d)")
-    return mu
-
-
-def _friction_lines(preset: Preset) -> tuple[list, list]:
-    """(notes, warnings) on the friction mapping, one per distinct contact kind."""
-    notes, warnings = [], []
-    fbb, fbw = preset.frictions
-    same = (fbb.mu_s, fbb.mu_d) == (fbw.mu_s, fbw.mu_d)
-    for label, f in zip(("",) if same else ("ball-ball", "ball-wall"), preset.frictions):
-        where = f" ({label})" if label else ""
-        if f.mu_s == f.mu_d:
-            notes.append(f"friction{where}: Coulomb μ = {f.mu_d:g} (LIGGGHTS `tangential history`: a tangential "
-                         f"spring capped at μ F_n; taimill's regularisation below v_s = {f.v_s * 1e3:g} mm/s has no "
-                         "counterpart, the sliding force is the same)")
-        else:
+                              "LIGGGHTS equivalent (set mu_s = mu_d or tangential = \"history\", or export without "
+                              "--strict to map μ = μ_d)")
+        if same and kind == "ball_wall":
+            continue  # one line for both kinds
+        if stiction:
             warnings.append(f"friction{where}: stiction μ_s = {f.mu_s:g} (below v_d = {f.v_d * 1e3:g} mm/s) has no "
                             f"LIGGGHTS equivalent; mapped to one Coulomb coefficient μ = μ_d = {f.mu_d:g} "
                             "(`tangential history`)")
-    return notes, warnings
+        else:
+            notes.append(f"friction{where}: " + t.note.format(mu=f.mu_d, v_s=f.v_s * 1e3))
+    return mu, models, settings, notes, warnings
 
 
-def _rolling(preset: Preset, strict: bool) -> dict:
-    """Rolling resistance: taimill's constant directional torque μ_r R* F_n is LIGGGHTS'
-    `rolling_friction cdt` (coefficientRollingFriction per type pair) for ball-ball
-    contacts, which both codes measure by ω_i − ω_j. LIGGGHTS' wall contacts measure the
-    ball's ground-frame spin (a mesh has no spin of its own), taimill's the spin relative
-    to the jar wall: a ball carried round by the jar would be braked in LIGGGHTS and not in
-    taimill, so ball-wall μ_r > 0 is refused. Returns {"mu_r": {kind: μ_r}, notes, warnings}
-    with the friction notes and warnings folded in."""
-    fbb, fbw = preset.frictions
-    notes, warnings = _friction_lines(preset)
-    if fbw.mu_r > 0:
-        key = "friction_ball_wall.mu_r" if preset.wall_friction is not None else "friction.mu_r"
-        raise ConfigError(preset.source, key, fbw.mu_r,
-                          "ball-wall rolling resistance has no LIGGGHTS equivalent in a turning jar (its wall "
-                          "contacts brake the ball's ground-frame spin, taimill's the spin relative to the wall); "
-                          "set it to 0 to export")
-    if fbb.mu_r == 0:
+def _rolling(preset: Preset, strict: bool) -> tuple[dict, dict, list, list]:
+    """(μ_r per kind, LIGGGHTS rolling model per kind, notes, warnings) of the rolling
+    sub-models (ROLLING_EXPORT); μ_r = {} and no model when neither kind has rolling
+    resistance. A kind with μ_r = 0 has no rolling_friction in its command."""
+    mu_r, models, notes, warnings = {}, {}, [], []
+    for kind, f in zip(("ball_ball", "ball_wall"), preset.frictions):
+        if f.mu_r == 0:
+            continue
+        r = ROLLING_EXPORT[ROLLING[f.rolling].name]
+        how = getattr(r, kind)
+        text = r.text[kind].format(mu_r=f.mu_r)
+        if how == "refused" or (how == "approximate" and strict):
+            raise ConfigError(preset.source, _key(preset, kind, "mu_r"), f.mu_r,
+                              text + ("" if how == "refused" else "; export without --strict to map it"))
+        (notes if how == "exact" else warnings).append(f"rolling resistance ({kind.replace('_', '-')}): {text}")
+        mu_r[kind], models[kind] = f.mu_r, r.keyword
+    if not models:
         notes.append("rolling resistance: none in either code")
-        return {"mu_r": {}, "notes": notes, "warnings": warnings}
-    text = (f"rolling resistance (ball-ball): μ_r = {fbb.mu_r:g} as LIGGGHTS `rolling_friction cdt` (the same torque "
-            "μ_r R* F_n against ω_i − ω_j), except that LIGGGHTS takes F_n without its damping part and has no "
-            "cap: near ω_r = 0 its torque flips sign every step where taimill's settles the rolling")
-    if strict:
-        key = "friction_ball_ball.mu_r" if preset.wall_friction is not None else "friction.mu_r"
-        raise ConfigError(preset.source, key, fbb.mu_r, text.split(": ", 1)[1] + "; export without --strict "
-                          "to map it")
-    warnings.append(text)
-    return {"mu_r": {"ball_ball": fbb.mu_r, "ball_wall": 0.0}, "notes": notes, "warnings": warnings}
+        return {}, {}, notes, warnings
+    return {"ball_ball": 0.0, "ball_wall": 0.0, **mu_r}, models, notes, warnings
 
 
 def motion_lines(preset: Preset) -> list[str]:
@@ -322,8 +396,9 @@ def export_case(preset: Preset, out, *, strict: bool = False, dump_mesh: bool = 
         "jar_mesh": {"side_facets": mesh.side_facets, "triangles": len(mesh.triangles),
                      "deviation": mesh.deviation, "tolerance": TOLERANCE},
         "mapping": {"normal": mapping.normal, "tangential": mapping.tangential,
+                    "tangential_models": mapping.tangential_models, "tangential_settings": mapping.tangential_settings,
                     "restitution": mapping.restitution, "friction": mapping.friction,
-                    "rolling": mapping.rolling,
+                    "rolling": mapping.rolling, "rolling_models": mapping.rolling_models,
                     "notes": mapping.notes, "warnings": mapping.warnings},
         "time_step_check": check,
     }
@@ -371,17 +446,26 @@ def _deck(preset: Preset, m: Mapping, spec, steps: int, check: dict, dump_mesh: 
     ball, wall = preset.balls.material, load_material(preset.jar.wall_material)
     r = preset.balls.radius
     if m.normal == "hertz":
-        models, keywords = "model hertz tangential history", "limitForce on"
+        normal, keywords = "model hertz", ["limitForce on"]
         props = [f"fix m3 all property/global coefficientRestitution peratomtypepair "
                  f"{_pair_matrix(m.restitution['ball_ball'], m.restitution['ball_wall'])}"]
     else:
         (kbb, cbb), (kbw, cbw) = m.stiffness["ball_ball"], m.stiffness["ball_wall"]
-        models = "model hooke/stiffness tangential history"
-        keywords = "absolute_damping on limitForce on tangential_damping off"
+        normal = "model hooke/stiffness"
+        keywords = ["absolute_damping on", "limitForce on", "tangential_damping off"]
         props = [f"fix m3 all property/global kn peratomtypepair {_pair_matrix(kbb, kbw)}",
                  f"fix m5 all property/global kt peratomtypepair {_pair_matrix(2 / 7 * kbb, 2 / 7 * kbw)}",
                  f"fix m6 all property/global gamman_abs peratomtypepair {_pair_matrix(cbb, cbw)}",
                  f"fix m7 all property/global gammat_abs peratomtypepair {_pair_matrix(0.0, 0.0)}"]
+
+    def models(kind):
+        """(models, settings) of one contact kind: pair_style (ball-ball) and the wall fix
+        (ball-wall) each take their own."""
+        rolling_model = m.rolling_models.get(kind)
+        settings = [*keywords, *(s for s in m.tangential_settings.get(kind, ()) if s not in keywords)]
+        rolling_part = f" rolling_friction {rolling_model}" if rolling_model else ""
+        return f"{normal} tangential {m.tangential_models[kind]}{rolling_part}", " ".join(settings)
+
     d = preset.drive
     lines = [
         f"# LIGGGHTS-PUBLIC 3.8 case exported by taimill from {preset.source}",
@@ -412,13 +496,13 @@ def _deck(preset: Preset, m: Mapping, spec, steps: int, check: dict, dump_mesh: 
         f"{_pair_matrix(m.friction['ball_ball'], m.friction['ball_wall'])}",
         *([f"fix m8 all property/global coefficientRollingFriction peratomtypepair "
            f"{_pair_matrix(m.rolling['ball_ball'], m.rolling['ball_wall'])}"] if m.rolling else []),
-        f"pair_style gran {models}{' rolling_friction cdt' if m.rolling else ''} {keywords}",
+        "pair_style gran {} {}".format(*models("ball_ball")),
         "pair_coeff * *",
         f"timestep {_n(preset.dt)}",
         "",
         "fix jar all mesh/surface file jar.stl type 2 move "
         f"{_n(preset.plate_radius)} 0. 0.",
-        f"fix walls all wall/gran {models} mesh n_meshes 1 meshes jar {keywords}",
+        "fix walls all wall/gran {} mesh n_meshes 1 meshes jar {}".format(*models("ball_wall")),
         "fix integrate all nve/sphere",
     ]
     if preset.gravity > 0:

@@ -165,7 +165,7 @@ def work_reference(task: dict) -> dict:
             return run(preset, NullSink(), duration=duration)["steps"]
         runner = Runner([from_preset(preset, duration)] * copies, use_grid=task["use_grid"])
         runner.run([NullSink()] * copies)
-        return int(runner.engine.F.step[0])
+        return int(runner.engine.F.state.step[0])
 
     simulate(COMPILE_DURATION)
     start = clocks()
@@ -184,14 +184,14 @@ def advance(engine, steps: int, chunk: int | None = None, budget: float = math.i
     from taimill.physics.runner import status_message
 
     F = engine.F
-    start, done = int(F.step[0]), 0
+    start, done = int(F.state.step[0]), 0
     t0 = clocks()
     while done < steps and time.perf_counter() - t0[0] < budget:
         engine.advance(min(chunk or steps, steps - done))
         engine.drain(0)
-        code, now = int(F.status[0]), int(F.step[0]) - start
+        code, now = int(F.state.status[0]), int(F.state.step[0]) - start
         if code != S.OK:
-            raise SimulationUnstable(status_message(code, int(F.bad_ball[0]), (start + now) * F.dt[0], F.dt[0]))
+            raise SimulationUnstable(status_message(code, int(F.state.bad_ball[0]), (start + now) * F.model.dt[0], F.model.dt[0]))
         if now == done:
             raise RuntimeError(f"the engine stopped advancing at step {start + now}")
         done = now
@@ -243,7 +243,7 @@ def work_scaling(task: dict) -> dict:
         if not settle:
             runner = Runner([spec], **mode)
             advance(runner.engine, 1)
-        begins.append(int(runner.engine.F.step[0]))
+        begins.append(int(runner.engine.F.state.step[0]))
         spent, done = advance(runner.engine, WINDOW_STEPS, chunk, task["seconds"] - timed[0])
         timed = [a + b for a, b in zip(timed, spent)]
         steps += done

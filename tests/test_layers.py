@@ -113,9 +113,20 @@ def is_fields(node) -> bool:
         isinstance(node, ast.Attribute) and node.attr in FIELDS_NAMES)
 
 
+def reaches_fields(node) -> bool:
+    """`node` is an attribute of an engine's fields object, directly or through its
+    groups (`F.x`, `F.state.x`)."""
+    while isinstance(node, ast.Attribute):
+        if is_fields(node.value):
+            return True
+        node = node.value
+    return False
+
+
 def field_writes(path: Path) -> list[tuple[str, int]]:
-    """Writes to a Taichi field: `F.name[...] = …` (also augmented, or in a tuple of
-    targets) and `F.name.fill(…)` / `.from_numpy(…)` … on an engine's fields object."""
+    """Writes to a Taichi field: `F.group.name[...] = …` (also augmented, or in a tuple
+    of targets) and `F.group.name.fill(…)` / `.from_numpy(…)` … on an engine's fields
+    object."""
     def targets(node):
         if isinstance(node, (ast.Tuple, ast.List)):
             for elt in node.elts:
@@ -136,7 +147,7 @@ def field_writes(path: Path) -> list[tuple[str, int]]:
         else:
             continue
         for x in written:
-            if isinstance(x, (ast.Subscript, ast.Attribute)) and isinstance(x.value, ast.Attribute) and is_fields(x.value.value):
+            if isinstance(x, (ast.Subscript, ast.Attribute)) and isinstance(x.value, ast.Attribute) and reaches_fields(x.value):
                 bad.append((ast.unparse(x), node.lineno))
     return bad
 
@@ -217,9 +228,9 @@ def test_the_package_keeps_its_layers():
     ("tui/controls.py", "from taimill.runs.sweep import plan", "the TUI uses only taimill.runs.live"),
     ("tui/app.py", "x = self.mill._lock", "reaches into self.mill._lock"),
     ("model/frame.py", "from taimill.model import spec", "import cycle: * taimill.model.frame -> "),
-    ("runs/live.py", "self.F.dt[0] = 1e-6", "taimill.runs.live:{n} writes the Taichi field self.F.dt[0]"),
-    ("runs/simulation.py", "runner.engine.F.step[b] += 1", "writes the Taichi field runner.engine.F.step[b]"),
-    ("tui/app.py", "a, F.mu_s[0, 1] = 1, 0.2", "writes the Taichi field F.mu_s[0, 1]"),
+    ("runs/live.py", "self.F.model.dt[0] = 1e-6", "taimill.runs.live:{n} writes the Taichi field self.F.model.dt[0]"),
+    ("runs/simulation.py", "runner.engine.F.state.step[b] += 1", "writes the Taichi field runner.engine.F.state.step[b]"),
+    ("tui/app.py", "a, F.model.mu_s[0, 1] = 1, 0.2", "writes the Taichi field F.model.mu_s[0, 1]"),
     ("store/run.py", "fields.x.from_numpy(x)", "writes the Taichi field fields.x.from_numpy"),
 ])
 def test_a_planted_bad_import_is_named(tmp_path, file, line, expected):

@@ -40,8 +40,8 @@ def test_speed_change_ramps_from_the_current_state(mill):
     assert angle_gap(after["plate_angle"], before["plate_angle"]) < 1e-9
     assert angle_gap(after["jar_angle"], before["jar_angle"]) < 1e-9
     # the kernel reads the new ramps (field data), and the time did not move
-    assert tuple(mill.F.plate_ramp[0]) == pytest.approx(mill.plate.as_tuple(), rel=1e-12)
-    assert tuple(mill.F.jar_ramp[0]) == pytest.approx(mill.jar.as_tuple(), rel=1e-12)
+    assert tuple(mill.F.model.plate_ramp[0]) == pytest.approx(mill.plate.as_tuple(), rel=1e-12)
+    assert tuple(mill.F.model.jar_ramp[0]) == pytest.approx(mill.jar.as_tuple(), rel=1e-12)
     assert mill.time == pytest.approx(t, rel=1e-12)
     # a real ramp: halfway at half time, target at the end, Euler term nonzero on the way
     mid = mill.drive(t + 0.25)
@@ -98,7 +98,7 @@ def test_friction_change_reaches_the_kernel(mill):
     mill.advance(steps=100_000)
     t_off = mill.time
     mill.set_friction(mu_s=0.0, mu_d=0.0)
-    assert (mill.F.mu_s[0, 0], mill.F.mu_d[0, 0]) == (0.0, 0.0)
+    assert (mill.F.model.mu_s[0, 0], mill.F.model.mu_d[0, 0]) == (0.0, 0.0)
     mill.advance(steps=150_000)
     t_on = mill.time
     mill.set_friction(pair="steel-steel")

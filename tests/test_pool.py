@@ -35,9 +35,9 @@ def rss():
 n = 100_000
 e = Engine(1, n, mode="parallel", grid_cells=1 << 18)
 F = e.F
-buffers = (F.events.shape[1] * F.events.n + 9 * F.frame_capacity * F.N) * 8  # bounded by bytes (Engine)
+buffers = (F.out.events.shape[1] * F.out.events.n + 9 * F.frame_capacity * F.N) * 8  # bounded by bytes (Engine)
 before = rss()
-F.n_balls[0] = 1  # materialises every field
+F.model.n_balls[0] = 1  # materialises every field
 print((rss() - before - buffers) / n)
 """
 
@@ -108,9 +108,9 @@ def test_contacts_take_their_owners_home_rows_first(mode):
     runner = Runner([_cluster_spec()], mode=mode)
     runner.engine.advance(1)
     F = runner.engine.F
-    assert F.step[0] == 1
+    assert F.state.step[0] == 1
     assert F.home == 4 and F.spill_base == 4 * F.N
-    mask, rows = F.slot_mask.to_numpy()[0], F.slot_row.to_numpy()[0]
+    mask, rows = F.contacts.slot_mask.to_numpy()[0], F.contacts.slot_row.to_numpy()[0]
     shared = []
     for i in range(13):
         open_rows = [rows[i, k] for k in range(15) if mask[i] >> k & 1]

@@ -207,9 +207,9 @@ def test_writing_a_large_mill_is_one_kernel_launch(monkeypatch):
     took = time.process_time() - t0
     assert launches == ["_load_mill"], launches
     assert took < 3.0, took  # measured 0.05 s CPU once compiled
-    assert np.array_equal(F.x.to_numpy()[0, :n], x) and np.array_equal(F.s.to_numpy()[0, :n], spec.spin)
-    assert (F.r.to_numpy()[0, n:] == 1.0).all() and (F.slot_mask.to_numpy()[0] == 0).all()
-    assert np.array_equal(F.inv_i.to_numpy()[0, :n], 1.0 / spec.inertia)
+    assert np.array_equal(F.state.x.to_numpy()[0, :n], x) and np.array_equal(F.state.s.to_numpy()[0, :n], spec.spin)
+    assert (F.model.r.to_numpy()[0, n:] == 1.0).all() and (F.contacts.slot_mask.to_numpy()[0] == 0).all()
+    assert np.array_equal(F.model.inv_i.to_numpy()[0, :n], 1.0 / spec.inertia)
 
 
 def test_a_presets_two_contact_types_are_calibrated_in_one_batch(monkeypatch):

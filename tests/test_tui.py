@@ -68,7 +68,7 @@ async def test_speed_fields_ramp_the_running_mill(mill, tmp_path):
         assert (mill.plate_rpm, mill.ratio) == pytest.approx((300, -2.6))
         assert value(app, "jar-rpm") == "-1080"
         assert mill.plate.t0 == t and mill.plate.start == pytest.approx(om_before, rel=1e-12)
-        assert mill.plate.duration == 1.0 and tuple(mill.F.plate_ramp[0]) == pytest.approx(mill.plate.as_tuple())
+        assert mill.plate.duration == 1.0 and tuple(mill.F.model.plate_ramp[0]) == pytest.approx(mill.plate.as_tuple())
         await pilot.press("escape", "s", "s", "s")  # leave the field; three frames of 10 ms
         await wait_until(pilot, lambda: mill.time > t + 0.029)
         now = mill.drive()["plate"]
@@ -90,10 +90,10 @@ async def test_friction_fields_and_pair(mill, tmp_path):
         await enter(pilot, "mu-d", "0.2")
         await enter(pilot, "mu-s", "0.3")
         assert (mill.friction.mu_s, mill.friction.mu_d) == (0.3, 0.2)
-        assert (mill.F.mu_s[0, 0], mill.F.mu_d[0, 0]) == (0.3, 0.2)  # the kernel's data
+        assert (mill.F.model.mu_s[0, 0], mill.F.model.mu_d[0, 0]) == (0.3, 0.2)  # the kernel's data
         app.query_one("#pair").value = "steel-graphite"
         await pilot.pause()
-        assert (mill.F.mu_s[0, 0], mill.F.mu_d[0, 0]) == (0.1, 0.08) and value(app, "mu-s") == "0.1"
+        assert (mill.F.model.mu_s[0, 0], mill.F.model.mu_d[0, 0]) == (0.1, 0.08) and value(app, "mu-s") == "0.1"
         assert "steel-graphite" in message(app)
 
 
@@ -232,7 +232,7 @@ async def test_reset_new_jar_and_png(mill, tmp_path):
 async def test_unstable_run_stops_with_a_message_and_reset_recovers(mill, tmp_path):
     app = MillApp(mill, out_dir=tmp_path)
     async with app.run_test(size=SIZE) as pilot:
-        mill.F.bad_ball[0], mill.F.status[0] = 3, 2  # as the kernel flags a ball through the wall
+        mill.F.state.bad_ball[0], mill.F.state.status[0] = 3, 2  # as the kernel flags a ball through the wall
         await wait_until(pilot, lambda: "simulation stopped" in message(app))
         assert "ball 3 left the jar through a wall" in message(app) and app.loop.paused
         await pilot.press("r", "p")
@@ -282,7 +282,7 @@ async def test_mu_s_and_mu_d_are_applied_as_a_pair(mill, tmp_path):
         await pilot.pause()
         await pilot.press("0", ".", "3", "tab", "0", ".", "2", "enter")  # typed in both, one Enter
         await pilot.pause()
-        assert (mill.friction.mu_s, mill.friction.mu_d) == (0.3, 0.2) and (mill.F.mu_s[0, 0], mill.F.mu_d[0, 0]) == (0.3, 0.2)
+        assert (mill.friction.mu_s, mill.friction.mu_d) == (0.3, 0.2) and (mill.F.model.mu_s[0, 0], mill.F.model.mu_d[0, 0]) == (0.3, 0.2)
         assert "μ_s = 0.3, μ_d = 0.2" in message(app)
         app.query_one("#mu-d").focus()
         await pilot.pause()

@@ -9,7 +9,7 @@ partner's force and torque in its slot and the partner's visit reads them
 (partner_share): the same numbers without computing the contact twice.
 
 The lower own index owns a pair (state.owns; in parallel mode the rows are in grid
-order, reorder.py, and a ball's own index is F.user_of of its row): only it books the
+order, reorder.py, and a ball's own index is F.state.user_of of its row): only it books the
 event, the dissipation and the stored energy. Walls are owned by the ball. Open events live in per-ball slots flagged in a
 bitmask: bits 0-2 the walls, 3.. the partners. An event opens at the first step with
 overlap u > 0 — its onset normal speed u̇_n and slip u̇_t are taken from that step's
@@ -37,10 +37,10 @@ def partner_share(F: ti.template(), b, i, j):
     found = -1
     if ti.static(F.share_pairs):
         if i > j:
-            mask = F.slot_mask[b, j] >> S.WALLS
+            mask = F.contacts.slot_mask[b, j] >> S.WALLS
             k = S.WALLS
             while mask:
-                if mask & 1 and F.slot_partner[b, j, k] == i:
+                if mask & 1 and F.contacts.slot_partner[b, j, k] == i:
                     found = k
                 k += 1
                 mask >>= 1
@@ -53,8 +53,8 @@ def share_with_partner(F: ti.template(), b, i, k, f, tq):
     (partner_share). The pair function is antisymmetric to the bit, so these are the
     values its visit would compute: -F and a_j × (-F)."""
     if ti.static(F.share_pairs):
-        F.pair_f[b, i, k] = f
-        F.pair_tq[b, i, k] = tq
+        F.contacts.pair_f[b, i, k] = f
+        F.contacts.pair_tq[b, i, k] = tq
 
 
 @ti.func
@@ -65,8 +65,8 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
     f = ti.Vector([0.0, 0.0, 0.0])
     tq = ti.Vector([0.0, 0.0, 0.0])
     diss_n, diss_t, impact, stored, bit = 0.0, 0.0, False, 0.0, 0
-    xi, xj = F.x[b, i], F.x[b, j]
-    ri, rj = F.r[b, i], F.r[b, j]
+    xi, xj = F.state.x[b, i], F.state.x[b, j]
+    ri, rj = F.model.r[b, i], F.model.r[b, j]
     d = xj - xi
     dist2 = d.norm_sqr()
     touching = dist2 < (ri + rj) * (ri + rj)
@@ -74,7 +74,7 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
     if touching:
         shared = partner_share(F, b, i, j)
     if shared >= 0:  # the owner j computed this contact in this step
-        f, tq = F.pair_f[b, j, shared], F.pair_tq[b, j, shared]
+        f, tq = F.contacts.pair_f[b, j, shared], F.contacts.pair_tq[b, j, shared]
     elif touching:
         dist = ti.sqrt(dist2)
         u = ri + rj - dist
@@ -82,10 +82,10 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
         ai = nrm * (ri - 0.5 * u)
         aj = -nrm * (rj - 0.5 * u)
         wz = ti.Vector([0.0, 0.0, w])
-        vrel = (F.v[b, i] + (F.s[b, i] - wz).cross(ai)) - (F.v[b, j] + (F.s[b, j] - wz).cross(aj))
-        mi, mj = F.m[b, i], F.m[b, j]
+        vrel = (F.state.v[b, i] + (F.state.s[b, i] - wz).cross(ai)) - (F.state.v[b, j] + (F.state.s[b, j] - wz).cross(aj))
+        mi, mj = F.model.m[b, i], F.model.m[b, j]
         m_eff = mi * mj / (mi + mj)
-        inv_mass_t = (F.inv_m[b, i] + F.inv_m[b, j]) + (ai.norm_sqr() * F.inv_i[b, i] + aj.norm_sqr() * F.inv_i[b, j])
+        inv_mass_t = (F.model.inv_m[b, i] + F.model.inv_m[b, j]) + (ai.norm_sqr() * F.model.inv_i[b, i] + aj.norm_sqr() * F.model.inv_i[b, j])
         owner = S.owns(F, b, i, j)
         k, row, is_new = -1, -1, False
         hist_t, e_t, hist_r, e_r = ti.Vector([0.0, 0.0, 0.0]), 0.0, ti.Vector([0.0, 0.0, 0.0]), 0.0
@@ -98,14 +98,14 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
         f, tq = fc, ai.cross(fc)
         m_roll = ti.Vector([0.0, 0.0, 0.0])  # rolling-resistance torque on i; on j it is -m_roll to the bit
         d_roll, new_r, new_e_r = 0.0, hist_r, 0.0
-        if F.mu_r[b, 0] > 0.0:  # off: not computed, runs without it stay bit-identical
-            m_roll, d_roll, new_r, new_e_r = rolling_response(F, b, 0, F.s[b, i] - F.s[b, j], nrm, fn, fel, u,
-                                                              ri * rj / (ri + rj), F.inv_i[b, i] + F.inv_i[b, j], dt,
+        if F.model.mu_r[b, 0] > 0.0:  # off: not computed, runs without it stay bit-identical
+            m_roll, d_roll, new_r, new_e_r = rolling_response(F, b, 0, F.state.s[b, i] - F.state.s[b, j], nrm, fn, fel, u,
+                                                              ri * rj / (ri + rj), F.model.inv_i[b, i] + F.model.inv_i[b, j], dt,
                                                               hist_r)
             tq += m_roll
         if owner:
             dn, dtf, el = contact_energy(F, b, 0, u, udot, slip, fn, fel, ft, m_eff, inv_mass_t, dt)
-            if F.mu_r[b, 0] > 0.0:
+            if F.model.mu_r[b, 0] > 0.0:
                 dtf += d_roll
             if ti.static(F.history[0]):  # what the springs store is not dissipated: the ledger holds it
                 dtf -= (new_e_t - e_t) + (new_e_r - e_r)
@@ -127,25 +127,25 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
     """Contact forces and torques on ball i of mill b from the walls and the balls on
     its neighbour list; books events and the energy ledger (drive work, dissipation,
     stored elastic energy)."""
-    xi, vi, si, ri, mi = F.x[b, i], F.v[b, i], F.s[b, i], F.r[b, i], F.m[b, i]
+    xi, vi, si, ri, mi = F.state.x[b, i], F.state.v[b, i], F.state.s[b, i], F.model.r[b, i], F.model.m[b, i]
     w = dr.w
     wz = ti.Vector([0.0, 0.0, w])
     f = ti.Vector([0.0, 0.0, 0.0])
     tq = ti.Vector([0.0, 0.0, 0.0])
     drive, diss, stored = 0.0, 0.0, 0.0
-    was_open = F.slot_mask[b, i]
+    was_open = F.contacts.slot_mask[b, i]
     seen = 0
     for wall in ti.static(range(S.WALLS)):
         phi, grad = wall_near(F, b, i, wall, xi, ri)  # exact where φ < r: all that matters here
         u = ri - phi
         if phi < -ri:  # centre beyond the wall: it tunnelled (dt too large for the stiffness)
-            F.status[b] = S.ESCAPED
-            F.bad_ball[b] = S.user_id(F, b, i)
+            F.state.status[b] = S.ESCAPED
+            F.state.bad_ball[b] = S.user_id(F, b, i)
         elif u > 0.0:
             nrm = -grad
             a = nrm * (ri - 0.5 * u)
             vrel = vi + (si - wz).cross(a)
-            inv_mass_t = F.inv_m[b, i] + a.norm_sqr() * F.inv_i[b, i]
+            inv_mass_t = F.model.inv_m[b, i] + a.norm_sqr() * F.model.inv_i[b, i]
             is_new = (was_open & (1 << wall)) == 0
             row = -1
             hist_t, e_t, hist_r, e_r = ti.Vector([0.0, 0.0, 0.0]), 0.0, ti.Vector([0.0, 0.0, 0.0]), 0.0
@@ -158,10 +158,10 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
             f += fc
             tq += a.cross(fc)
             p = xi + a
-            drive += fc.dot(wall_velocity_ground(p, dr, F.plate_radius[b])) * dt
+            drive += fc.dot(wall_velocity_ground(p, dr, F.model.plate_radius[b])) * dt
             new_r, new_e_r = hist_r, 0.0
-            if F.mu_r[b, 1] > 0.0:  # the wall turns with the jar: its torque's power w ẑ·M is drive work
-                mr, d_roll, new_r_w, new_e_r_w = rolling_response(F, b, 1, si - wz, nrm, fn, fel, u, ri, F.inv_i[b, i],
+            if F.model.mu_r[b, 1] > 0.0:  # the wall turns with the jar: its torque's power w ẑ·M is drive work
+                mr, d_roll, new_r_w, new_e_r_w = rolling_response(F, b, 1, si - wz, nrm, fn, fel, u, ri, F.model.inv_i[b, i],
                                                                   dt, hist_r)
                 new_r, new_e_r = new_r_w, new_e_r_w
                 tq += mr
@@ -186,11 +186,11 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
     # per list entry kept the CPU from overlapping the contacts' evaluations.
     touching = ti.Vector([0] * S.NEIGHBOURS, dt=ti.i32)
     n_touching = 0
-    for q in range(F.nbr_count[b, i]):
-        j = F.nbr[b, i, q]
-        rr = ri + F.r[b, j]
+    for q in range(F.spatial.nbr_count[b, i]):
+        j = F.spatial.nbr[b, i, q]
+        rr = ri + F.model.r[b, j]
         touching[n_touching] = j
-        n_touching += ti.cast((F.x[b, j] - xi).norm_sqr() < rr * rr, ti.i32)
+        n_touching += ti.cast((F.state.x[b, j] - xi).norm_sqr() < rr * rr, ti.i32)
     for q in range(n_touching):
         j = touching[q]
         fj, tj, dnj, dtj, impact, ej, bit = ball_pair(F, b, i, j, was_open, seen, t, w, dt)
@@ -202,8 +202,8 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
         stored += ej
         seen |= bit
     close_events(F, b, i, was_open, seen, t)
-    F.f[b, i] = f
-    F.tau[b, i] = tq
-    F.drive_step[b, i] = drive
-    F.diss_step[b, i] = diss
-    F.elastic[b, i] = stored
+    F.state.f[b, i] = f
+    F.state.tau[b, i] = tq
+    F.state.drive_step[b, i] = drive
+    F.state.diss_step[b, i] = diss
+    F.state.elastic[b, i] = stored

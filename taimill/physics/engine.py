@@ -30,14 +30,14 @@ def drive(F: ti.template(), b, t):
     """The drive of mill b over [t, t + dt] with the step's four angles' cos and sin
     kept where they can be: the jar's turn while it repeats to the bit (every step at
     constant speed), ψ by a rotation recurrence (psi_trig)."""
-    dt = F.dt[b]
-    turn = ramp_turn(F.jar_ramp[b], t, dt)
-    trig = F.turn_trig[b]
+    dt = F.model.dt[b]
+    turn = ramp_turn(F.model.jar_ramp[b], t, dt)
+    trig = F.state.turn_trig[b]
     if trig[0] != turn:
         trig = ti.Vector([turn, ti.cos(turn), ti.sin(turn)])
-        F.turn_trig[b] = trig
+        F.state.turn_trig[b] = trig
     cpsi, spsi = psi_trig(F, b, t, dt)
-    return drive_turning(F.plate_ramp[b], F.jar_ramp[b], t, dt, trig[1], trig[2], cpsi, spsi)
+    return drive_turning(F.model.plate_ramp[b], F.model.jar_ramp[b], t, dt, trig[1], trig[2], cpsi, spsi)
 
 
 @ti.func
@@ -46,26 +46,26 @@ def psi_trig(F: ti.template(), b, t, dt):
     δ = (Ω - w) dt a step, and the values of the step before are turned by δ (4
     multiplications instead of two libm calls, 9 % of a 12-ball step); every
     PSI_RESYNC steps, and whenever the record is not of the step before, they are
-    computed from ψ(t). The record (F.psi_rec: t, cos, sin) serves every call of a step
+    computed from ψ(t). The record (F.state.psi_rec: t, cos, sin) serves every call of a step
     (parallel mode calls this once per phase). Drift: a rounding of the rotation a
     step, ≤ 1e-12 relative over PSI_RESYNC steps, below the rounding of ψ(t) itself
     (|ψ| ε ≈ 4e-13 rad at ψ = 2000 rad)."""
-    plate, jar = F.plate_ramp[b], F.jar_ramp[b]
-    rec = F.psi_rec[b]
-    step = F.step[b]  # t = step dt, as every caller computes it
+    plate, jar = F.model.plate_ramp[b], F.model.jar_ramp[b]
+    rec = F.state.psi_rec[b]
+    step = F.state.step[b]  # t = step dt, as every caller computes it
     prev = (step - 1) * dt  # the step before's t, computed as it was
     if rec[0] != t:
         if (rec[0] == prev and step % PSI_RESYNC != 0 and steady(plate, prev) and steady(jar, prev)):
             delta = (plate[2] - jar[2]) * dt
-            rot = F.psi_rot[b]
+            rot = F.state.psi_rot[b]
             if rot[0] != delta:
                 rot = ti.Vector([delta, ti.cos(delta), ti.sin(delta)])
-                F.psi_rot[b] = rot
+                F.state.psi_rot[b] = rot
             rec = ti.Vector([t, rec[1] * rot[1] - rec[2] * rot[2], rec[2] * rot[1] + rec[1] * rot[2]])
         else:
             psi = psi_at(plate, jar, t)
             rec = ti.Vector([t, ti.cos(psi), ti.sin(psi)])
-        F.psi_rec[b] = rec
+        F.state.psi_rec[b] = rec
     return rec[1], rec[2]
 
 
@@ -73,29 +73,29 @@ def psi_trig(F: ti.template(), b, t, dt):
 def snapshot(F: ti.template(), b, t, dr):
     """Store a frame (balls by own index) and the energy ledger (ground-frame kinetic
     energy, m g z, stored elastic energy, drive work, dissipation), J."""
-    k = F.n_frames[b]
-    F.frame_t[b, k] = t
-    om, _, phi_p = ramp_at(F.plate_ramp[b], t)
-    w, _, phi_j = ramp_at(F.jar_ramp[b], t)
-    F.frame_drive[b, k] = ti.Vector([phi_p, om, phi_j, w])  # DRIVE_FIELDS order
+    k = F.out.n_frames[b]
+    F.out.frame_t[b, k] = t
+    om, _, phi_p = ramp_at(F.model.plate_ramp[b], t)
+    w, _, phi_j = ramp_at(F.model.jar_ramp[b], t)
+    F.out.frame_drive[b, k] = ti.Vector([phi_p, om, phi_j, w])  # DRIVE_FIELDS order
     ke, pe, el, dw, ds = 0.0, 0.0, 0.0, 0.0, 0.0
     mech = ti.Vector.zero(ti.f64, S.NMECH)
-    for u in range(F.n_balls[b]):  # in own-index order: the sums do not depend on the rows' order
+    for u in range(F.model.n_balls[b]):  # in own-index order: the sums do not depend on the rows' order
         i = u
         if ti.static(F.reorder):
-            i = F.row_of[b, u]
-        x, v, s, m = F.x[b, i], F.v[b, i], F.s[b, i], F.m[b, i]
-        F.frame_x[b, k, u] = x
-        F.frame_v[b, k, u] = v
-        F.frame_s[b, k, u] = s
-        vg = v + wall_velocity_ground(x, dr, F.plate_radius[b])
-        ke += 0.5 * m * vg.norm_sqr() + 0.5 * s.norm_sqr() / F.inv_i[b, i]
-        pe += m * F.gravity[b] * x[2]
-        el += F.elastic[b, i]
-        dw += F.drive_work[b, i]
-        ds += F.dissipated[b, i]
+            i = F.state.row_of[b, u]
+        x, v, s, m = F.state.x[b, i], F.state.v[b, i], F.state.s[b, i], F.model.m[b, i]
+        F.out.frame_x[b, k, u] = x
+        F.out.frame_v[b, k, u] = v
+        F.out.frame_s[b, k, u] = s
+        vg = v + wall_velocity_ground(x, dr, F.model.plate_radius[b])
+        ke += 0.5 * m * vg.norm_sqr() + 0.5 * s.norm_sqr() / F.model.inv_i[b, i]
+        pe += m * F.model.gravity[b] * x[2]
+        el += F.state.elastic[b, i]
+        dw += F.state.drive_work[b, i]
+        ds += F.state.dissipated[b, i]
         for c in ti.static(range(S.NMECH)):
-            mech[c] += F.mech[b, i, c]
+            mech[c] += F.state.mech[b, i, c]
     row = ti.Vector.zero(ti.f64, S.NLEDGER)  # the schema's ledger columns, by name
     row[S.LEDGER["kinetic"]] = ke
     row[S.LEDGER["potential"]] = pe
@@ -104,8 +104,8 @@ def snapshot(F: ti.template(), b, t, dr):
     row[S.LEDGER["dissipated"]] = ds
     for c in ti.static(range(S.NMECH)):
         row[S.LEDGER[S.MECHANISM_COLUMNS[c]]] = mech[c]
-    F.frame_ledger[b, k] = row
-    F.n_frames[b] = k + 1
+    F.out.frame_ledger[b, k] = row
+    F.out.n_frames[b] = k + 1
 
 
 @ti.func
@@ -114,9 +114,9 @@ def can_step(F: ti.template(), b, margin):
     worst step, and the frame buffer for its frame if it takes one (so a launch of
     frame_capacity × frame_every steps from a frame step fills the buffer exactly:
     Runner)."""
-    ok = F.status[b] == S.OK and F.step[b] < F.target[b] and F.n_events[b] + margin <= F.event_capacity
-    if ok and F.n_frames[b] >= F.frame_capacity:  # (Taichi evaluates both sides of `and`: no modulo per step)
-        ok = F.step[b] % F.frame_every[b] != 0
+    ok = F.state.status[b] == S.OK and F.state.step[b] < F.model.target[b] and F.out.n_events[b] + margin <= F.event_capacity
+    if ok and F.out.n_frames[b] >= F.frame_capacity:  # (Taichi evaluates both sides of `and`: no modulo per step)
+        ok = F.state.step[b] % F.model.frame_every[b] != 0
     return ok
 
 
@@ -124,22 +124,22 @@ def can_step(F: ti.template(), b, margin):
 def step_mill(F: ti.template(), b, use_grid: ti.template()):
     """One time step of mill b: neighbour lists if stale, forces, frame (its stored
     energy is that of the forces just computed), integration."""
-    dt = F.dt[b]
-    st = F.step[b]
+    dt = F.model.dt[b]
+    st = F.state.step[b]
     t = st * dt
     dr = drive(F, b, t)
-    if F.rebuild[b]:
+    if F.spatial.rebuild[b]:
         rebuild_serial(F, b, use_grid)
-    for i in range(F.n_balls[b]):
+    for i in range(F.model.n_balls[b]):
         ball_forces(F, b, i, t, dr, dt)
-    if st % F.frame_every[b] == 0:
+    if st % F.model.frame_every[b] == 0:
         snapshot(F, b, t, dr)
     pool_settle(F, b)
     a_frame = frame_acceleration(F, b, dr)
-    for i in range(F.n_balls[b]):
+    for i in range(F.model.n_balls[b]):
         integrate(F, b, i, dr, dt, a_frame)
         release_rows(F, b, i)
-    F.step[b] = st + 1
+    F.state.step[b] = st + 1
 
 
 @ti.kernel
@@ -169,8 +169,8 @@ def begin_step(F: ti.template(), margin: ti.i32) -> ti.i32:
     """0 (stop) or GO, plus STALE if the lists need a rebuild, FRAME if a frame is due."""
     go = 0
     if can_step(F, 0, margin):
-        go = GO + STALE * F.rebuild[0]
-        if F.step[0] % F.frame_every[0] == 0:
+        go = GO + STALE * F.spatial.rebuild[0]
+        if F.state.step[0] % F.model.frame_every[0] == 0:
             go += FRAME
     return go
 
@@ -179,38 +179,38 @@ def begin_step(F: ti.template(), margin: ti.i32) -> ti.i32:
 def frame_parallel(F: ti.template()):
     ti.loop_config(serialize=True)
     for _ in range(1):
-        t = F.step[0] * F.dt[0]
+        t = F.state.step[0] * F.model.dt[0]
         snapshot(F, 0, t, drive(F, 0, t))
 
 
 @ti.kernel
 def forces_parallel(F: ti.template()):
-    dt = F.dt[0]
-    st = F.step[0]
+    dt = F.model.dt[0]
+    st = F.state.step[0]
     t = st * dt
     dr = drive(F, 0, t)
-    for i in range(F.n_balls[0]):
+    for i in range(F.model.n_balls[0]):
         ball_forces(F, 0, i, t, dr, dt)
 
 
 @ti.kernel
 def integrate_parallel(F: ti.template()):
-    dt = F.dt[0]
-    t = F.step[0] * dt
+    dt = F.model.dt[0]
+    t = F.state.step[0] * dt
     dr = drive(F, 0, t)
     pool_settle(F, 0)
     a_frame = frame_acceleration(F, 0, dr)
-    for i in range(F.n_balls[0]):
+    for i in range(F.model.n_balls[0]):
         integrate(F, 0, i, dr, dt, a_frame)
         release_rows(F, 0, i)  # after the force pass, the only one that takes rows
-    F.step[0] += 1
+    F.state.step[0] += 1
 
 
 # ---- draining the output buffers
 @ti.kernel
 def export_events(F: ti.template(), b: ti.i32, n: ti.i32, out: ti.types.ndarray()):
     for e, c in ti.ndrange(n, S.NCOL):
-        out[e, c] = F.events[b, e][c]
+        out[e, c] = F.out.events[b, e][c]
 
 
 @ti.kernel
@@ -218,16 +218,16 @@ def export_frames(F: ti.template(), b: ti.i32, n: ti.i32, nb: ti.i32, t: ti.type
                   x: ti.types.ndarray(), v: ti.types.ndarray(), s: ti.types.ndarray(), ledger: ti.types.ndarray(),
                   drive: ti.types.ndarray()):
     for k in range(n):
-        t[k] = F.frame_t[b, k]
+        t[k] = F.out.frame_t[b, k]
         for c in ti.static(range(len(S.DRIVE_FIELDS))):
-            drive[k, c] = F.frame_drive[b, k][c]
+            drive[k, c] = F.out.frame_drive[b, k][c]
         for c in ti.static(range(len(S.LEDGER_FIELDS))):
-            ledger[k, c] = F.frame_ledger[b, k][c]
+            ledger[k, c] = F.out.frame_ledger[b, k][c]
         for i in range(nb):
             for c in ti.static(range(3)):
-                x[k, i, c] = F.frame_x[b, k, i][c]
-                v[k, i, c] = F.frame_v[b, k, i][c]
-                s[k, i, c] = F.frame_s[b, k, i][c]
+                x[k, i, c] = F.out.frame_x[b, k, i][c]
+                v[k, i, c] = F.out.frame_v[b, k, i][c]
+                s[k, i, c] = F.out.frame_s[b, k, i][c]
 
 
 class Engine:
@@ -309,18 +309,18 @@ class Engine:
 
     def own_order(self, b: int) -> np.ndarray:
         """Row of each ball of mill b, by own index (the identity unless F.reorder)."""
-        n = int(self.F.n_balls[b])
-        return self.F.row_of.to_numpy()[b, :n] if self.F.reorder else np.arange(n)
+        n = int(self.F.model.n_balls[b])
+        return self.F.state.row_of.to_numpy()[b, :n] if self.F.reorder else np.arange(n)
 
     def ball_rows(self, b: int, name: str) -> np.ndarray:
         """Per-ball field `name` (x, v, s, r, …) of mill b by own index."""
-        return getattr(self.F, name).to_numpy()[b][self.own_order(b)]
+        return self.F.field(name).to_numpy()[b][self.own_order(b)]
 
     def neighbour_lists(self, b: int) -> list[list[int]]:
         """Each ball's neighbour list, by own index."""
-        count = self.F.nbr_count.to_numpy()[b]
-        nbr = self.F.nbr.to_numpy()[b]
-        user = self.F.user_of.to_numpy()[b] if self.F.reorder else np.arange(len(count))
+        count = self.F.spatial.nbr_count.to_numpy()[b]
+        nbr = self.F.spatial.nbr.to_numpy()[b]
+        user = self.F.state.user_of.to_numpy()[b] if self.F.reorder else np.arange(len(count))
         return [[int(j) for j in user[nbr[i, : count[i]]]] for i in self.own_order(b)]
 
     def _frame_arrays(self, b: int, nf: int, nb: int) -> list[np.ndarray]:
@@ -341,18 +341,18 @@ class Engine:
         """Frames and events of mill b buffered since the last drain, as NumPy arrays;
         resets the buffers."""
         F = self.F
-        nb = int(F.n_balls[b])
-        ne = min(int(F.n_events[b]), F.event_capacity)
-        nf = int(F.n_frames[b])
+        nb = int(F.model.n_balls[b])
+        ne = min(int(F.out.n_events[b]), F.event_capacity)
+        nf = int(F.out.n_frames[b])
         ev = np.zeros((ne, S.NCOL))
         if ne:
             export_events(F, b, ne, ev)
         t, x, v, s, ledger, drive = self._frame_arrays(b, nf, nb)
         if nf:
             export_frames(F, b, nf, nb, t, x, v, s, ledger, drive)
-        overflow = int(F.n_events[b]) > F.event_capacity
-        F.n_events[b] = 0
-        F.n_frames[b] = 0
+        overflow = int(F.out.n_events[b]) > F.event_capacity
+        F.out.n_events[b] = 0
+        F.out.n_frames[b] = 0
         if overflow:
             raise RuntimeError(f"more than {self.margin} collision events ended in one step: event buffer overflow")
         frames = {"time": t, "position": x, "velocity": v, "spin": s}

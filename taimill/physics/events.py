@@ -16,30 +16,30 @@ def book_contact(F: ti.template(), b, row, is_new, t, u, udot, slip, p, fn, dn, 
     if is_new:
         q = ti.Vector([t, udot, slip.norm(), p[0], p[1], p[2], fn, u, dn, dtf])
         if ti.static(F.pool_width == S.SLOT_DATA):
-            F.pool[b, row] = q
+            F.contacts.pool[b, row] = q
         else:  # the history columns are the history model's (pool.write_history)
             for c in ti.static(range(S.SLOT_DATA)):
-                F.pool[b, row][c] = q[c]
-        impact = udot >= F.stress_un[b]
+                F.contacts.pool[b, row][c] = q[c]
+        impact = udot >= F.model.stress_un[b]
     else:
-        q = F.pool[b, row]
+        q = F.contacts.pool[b, row]
         q[S.SLOT_FPEAK] = ti.max(q[S.SLOT_FPEAK], fn)
         q[S.SLOT_UPEAK] = ti.max(q[S.SLOT_UPEAK], u)
         q[S.SLOT_DN] += dn
         q[S.SLOT_DT] += dtf
-        F.pool[b, row] = q
-        impact = q[S.SLOT_UN] >= F.stress_un[b] and t - q[S.SLOT_T0] <= F.impact_age[b]
+        F.contacts.pool[b, row] = q
+        impact = q[S.SLOT_UN] >= F.model.stress_un[b] and t - q[S.SLOT_T0] <= F.model.impact_age[b]
     return impact
 
 
 @ti.func
 def emit_event(F: ti.template(), b, i, k, t):
-    q = F.pool[b, F.slot_row[b, i, k]]
-    mi = F.m[b, i]
+    q = F.contacts.pool[b, F.contacts.slot_row[b, i, k]]
+    mi = F.model.m[b, i]
     body_j, kind, m_eff = -1.0 - k, 1.0, mi
     if k >= S.WALLS:
-        j = F.slot_partner[b, i, k]
-        body_j, kind, m_eff = ti.cast(S.user_id(F, b, j), ti.f64), 0.0, mi * F.m[b, j] / (mi + F.m[b, j])
+        j = F.contacts.slot_partner[b, i, k]
+        body_j, kind, m_eff = ti.cast(S.user_id(F, b, j), ti.f64), 0.0, mi * F.model.m[b, j] / (mi + F.model.m[b, j])
     row = ti.Vector.zero(ti.f64, S.NCOL)  # the schema's event columns, by name
     row[S.EV["t_start"]] = q[S.SLOT_T0]
     row[S.EV["duration"]] = t - q[S.SLOT_T0]
@@ -56,9 +56,9 @@ def emit_event(F: ti.template(), b, i, k, t):
     row[S.EV["peak_penetration"]] = q[S.SLOT_UPEAK]
     row[S.EV["dissipated_normal"]] = q[S.SLOT_DN]
     row[S.EV["dissipated_friction"]] = q[S.SLOT_DT]
-    e = ti.atomic_add(F.n_events[b], 1)
+    e = ti.atomic_add(F.out.n_events[b], 1)
     if e < F.event_capacity:
-        F.events[b, e] = row
+        F.out.events[b, e] = row
 
 
 @ti.func
@@ -66,14 +66,14 @@ def close_events(F: ti.template(), b, i, was_open, seen, t):
     """Contacts open before this step and not seen in it have separated: their events
     are written, their rows released after the pass (release_rows)."""
     gone = was_open & ~seen
-    F.slot_closed[b, i] = gone
+    F.contacts.slot_closed[b, i] = gone
     k = 0
     while gone:
         if gone & 1:
             emit_event(F, b, i, k, t)
         gone >>= 1
         k += 1
-    F.slot_mask[b, i] = seen
+    F.contacts.slot_mask[b, i] = seen
 
 
 @ti.func
@@ -83,5 +83,5 @@ def book_mechanism(F: ti.template(), b, i, kind, impact, dn, dtf):
     pass, so a frame's mechanism columns include its own step, which `dissipated`
     books after the frame: they differ by at most one step's dissipation."""
     c = kind * 4 + ti.select(impact, 0, 2)
-    F.mech[b, i, c] = F.mech[b, i, c] + dn  # one writer per ball: no atomic (integrator.integrate)
-    F.mech[b, i, c + 1] = F.mech[b, i, c + 1] + dtf
+    F.state.mech[b, i, c] = F.state.mech[b, i, c] + dn  # one writer per ball: no atomic (integrator.integrate)
+    F.state.mech[b, i, c + 1] = F.state.mech[b, i, c + 1] + dtf

@@ -9,19 +9,19 @@ import taichi as ti
 
 @ti.func
 def cell_coords(F: ti.template(), b, x):
-    c = ti.cast(ti.floor((x - F.grid_lo[b]) / F.grid_h[b]), ti.i32)
-    return ti.max(ti.min(c, F.grid_dim[b] - 1), 0)
+    c = ti.cast(ti.floor((x - F.spatial.grid_lo[b]) / F.spatial.grid_h[b]), ti.i32)
+    return ti.max(ti.min(c, F.spatial.grid_dim[b] - 1), 0)
 
 
 @ti.func
 def cell_index(F: ti.template(), b, c):
-    d = F.grid_dim[b]
+    d = F.spatial.grid_dim[b]
     return (c[2] * d[1] + c[1]) * d[0] + c[0]
 
 
 @ti.func
 def n_cells(F: ti.template(), b):
-    d = F.grid_dim[b]
+    d = F.spatial.grid_dim[b]
     return d[0] * d[1] * d[2]
 
 
@@ -29,35 +29,35 @@ def n_cells(F: ti.template(), b):
 def build_serial(F: ti.template(), b):
     """The whole counting sort for mill b in one thread (batched small mills)."""
     for c in range(n_cells(F, b)):
-        F.cell_count[b, c] = 0
-    for i in range(F.n_balls[b]):
-        c = cell_index(F, b, cell_coords(F, b, F.x[b, i]))
-        F.cell_of[b, i] = c
-        F.cell_count[b, c] = F.cell_count[b, c] + 1  # one thread: no atomic
+        F.spatial.cell_count[b, c] = 0
+    for i in range(F.model.n_balls[b]):
+        c = cell_index(F, b, cell_coords(F, b, F.state.x[b, i]))
+        F.spatial.cell_of[b, i] = c
+        F.spatial.cell_count[b, c] = F.spatial.cell_count[b, c] + 1  # one thread: no atomic
     running = 0
     for c in range(n_cells(F, b)):
-        F.cell_start[b, c] = running
-        running += F.cell_count[b, c]
-        F.cell_count[b, c] = 0
-    for i in range(F.n_balls[b]):
-        c = F.cell_of[b, i]
-        F.sorted_ids[b, F.cell_start[b, c] + F.cell_count[b, c]] = i
-        F.cell_count[b, c] = F.cell_count[b, c] + 1
+        F.spatial.cell_start[b, c] = running
+        running += F.spatial.cell_count[b, c]
+        F.spatial.cell_count[b, c] = 0
+    for i in range(F.model.n_balls[b]):
+        c = F.spatial.cell_of[b, i]
+        F.spatial.sorted_ids[b, F.spatial.cell_start[b, c] + F.spatial.cell_count[b, c]] = i
+        F.spatial.cell_count[b, c] = F.spatial.cell_count[b, c] + 1
 
 
 # ---- the same counting sort as parallel kernels, for one large mill (b = 0)
 @ti.kernel
 def clear_cells(F: ti.template()):
     for c in range(n_cells(F, 0)):
-        F.cell_count[0, c] = 0
+        F.spatial.cell_count[0, c] = 0
 
 
 @ti.kernel
 def count_cells(F: ti.template()):
-    for i in range(F.n_balls[0]):
-        c = cell_index(F, 0, cell_coords(F, 0, F.x[0, i]))
-        F.cell_of[0, i] = c
-        ti.atomic_add(F.cell_count[0, c], 1)
+    for i in range(F.model.n_balls[0]):
+        c = cell_index(F, 0, cell_coords(F, 0, F.state.x[0, i]))
+        F.spatial.cell_of[0, i] = c
+        ti.atomic_add(F.spatial.cell_count[0, c], 1)
 
 
 @ti.kernel
@@ -66,30 +66,30 @@ def prefix_cells(F: ti.template()):
     for _ in range(1):
         running = 0
         for c in range(n_cells(F, 0)):
-            F.cell_start[0, c] = running
-            running += F.cell_count[0, c]
-            F.cell_count[0, c] = 0
+            F.spatial.cell_start[0, c] = running
+            running += F.spatial.cell_count[0, c]
+            F.spatial.cell_count[0, c] = 0
 
 
 @ti.kernel
 def fill_cells(F: ti.template()):
-    for i in range(F.n_balls[0]):
-        c = F.cell_of[0, i]
-        F.sorted_ids[0, F.cell_start[0, c] + ti.atomic_add(F.cell_count[0, c], 1)] = i
+    for i in range(F.model.n_balls[0]):
+        c = F.spatial.cell_of[0, i]
+        F.spatial.sorted_ids[0, F.spatial.cell_start[0, c] + ti.atomic_add(F.spatial.cell_count[0, c], 1)] = i
 
 
 @ti.kernel
 def sort_cells(F: ti.template()):
     """Insertion sort inside each cell: the parallel fill leaves arbitrary order."""
     for c in range(n_cells(F, 0)):
-        lo = F.cell_start[0, c]
-        for a in range(lo + 1, lo + F.cell_count[0, c]):
-            key = F.sorted_ids[0, a]
+        lo = F.spatial.cell_start[0, c]
+        for a in range(lo + 1, lo + F.spatial.cell_count[0, c]):
+            key = F.spatial.sorted_ids[0, a]
             k = a - 1
-            while k >= lo and F.sorted_ids[0, k] > key:
-                F.sorted_ids[0, k + 1] = F.sorted_ids[0, k]
+            while k >= lo and F.spatial.sorted_ids[0, k] > key:
+                F.spatial.sorted_ids[0, k + 1] = F.spatial.sorted_ids[0, k]
                 k -= 1
-            F.sorted_ids[0, k + 1] = key
+            F.spatial.sorted_ids[0, k + 1] = key
 
 
 def build_parallel(F):

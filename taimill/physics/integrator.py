@@ -22,7 +22,7 @@ from taimill.physics.neighbours import moved_too_far
 def frame_acceleration(F: ti.template(), b, dr):
     """The step's acceleration of every ball but the contacts': the jar centre's
     translation and gravity, m/s² (once per step, not per ball)."""
-    return translation_acceleration(dr, F.plate_radius[b]) - ti.Vector([0.0, 0.0, F.gravity[b]])
+    return translation_acceleration(dr, F.model.plate_radius[b]) - ti.Vector([0.0, 0.0, F.model.gravity[b]])
 
 
 @ti.func
@@ -30,20 +30,20 @@ def integrate(F: ti.template(), b, i, dr, dt, a_frame):
     """One step of ball i; a_frame = frame_acceleration of this step. The contact
     acceleration is f times the stored 1/m (a multiplication instead of a division: 5 %
     of a 12-ball step; it differs from f/m in the last bit)."""
-    x = F.x[b, i]
-    u = to_non_rotating(F.v[b, i], x, dr.w)
-    u += dt * (F.f[b, i] * F.inv_m[b, i] + a_frame)
+    x = F.state.x[b, i]
+    u = to_non_rotating(F.state.v[b, i], x, dr.w)
+    u += dt * (F.state.f[b, i] * F.model.inv_m[b, i] + a_frame)
     x = turn_basis(x + dt * u, dr)
     u = turn_basis(u, dr)
-    F.x[b, i] = x
-    F.v[b, i] = from_non_rotating(u, x, dr.w_next)
-    F.s[b, i] = turn_basis(F.s[b, i] + dt * F.inv_i[b, i] * F.tau[b, i], dr)
+    F.state.x[b, i] = x
+    F.state.v[b, i] = from_non_rotating(u, x, dr.w_next)
+    F.state.s[b, i] = turn_basis(F.state.s[b, i] + dt * F.model.inv_i[b, i] * F.state.tau[b, i], dr)
     # one writer per ball: a plain read-modify-write (`+=` on a field is an atomic,
     # a locked instruction even in a serial loop)
-    F.drive_work[b, i] = F.drive_work[b, i] + F.drive_step[b, i]
-    F.dissipated[b, i] = F.dissipated[b, i] + F.diss_step[b, i]
+    F.state.drive_work[b, i] = F.state.drive_work[b, i] + F.state.drive_step[b, i]
+    F.state.dissipated[b, i] = F.state.dissipated[b, i] + F.state.diss_step[b, i]
     if moved_too_far(F, b, i):
-        F.rebuild[b] = 1
+        F.spatial.rebuild[b] = 1
     check_ball(F, b, i, x)
 
 
@@ -52,5 +52,5 @@ def check_ball(F: ti.template(), b, i, x):
     """Flag a non-finite or runaway state (NaN fails every comparison). A ball that
     tunnelled through a wall is caught by the contact loop (contacts.py)."""
     if not (ti.abs(x[0]) < 1e3 and ti.abs(x[1]) < 1e3 and ti.abs(x[2]) < 1e3):
-        F.status[b] = S.NONFINITE
-        F.bad_ball[b] = S.user_id(F, b, i)
+        F.state.status[b] = S.NONFINITE
+        F.state.bad_ball[b] = S.user_id(F, b, i)

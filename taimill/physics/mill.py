@@ -24,36 +24,36 @@ def write_mill(F, b: int, spec: MillSpec):
         raise ValueError(f"the engine's kernels are not compiled for the contact model {missing[0]}")
     if len(pieces) > S.MAX_PIECES:
         raise ValueError(f"at most {S.MAX_PIECES} profile pieces, the jar has {len(pieces)}")
-    F.n_balls[b] = n
-    F.dt[b] = spec.dt
-    F.gravity[b] = spec.gravity
-    F.plate_radius[b] = spec.plate_radius
-    F.height[b] = spec.height
+    F.model.n_balls[b] = n
+    F.model.dt[b] = spec.dt
+    F.model.gravity[b] = spec.gravity
+    F.model.plate_radius[b] = spec.plate_radius
+    F.model.height[b] = spec.height
     set_drive(F, b, spec.plate, spec.jar)
-    F.frame_every[b] = spec.frame_every
-    F.turn_trig[b] = (float("inf"), 1.0, 0.0)  # no turn is inf: computed at the first step (NaN would not do: Taichi compares floats ordered)
-    F.psi_rec[b] = (float("inf"), 1.0, 0.0)  # no step's: computed at the first step
-    F.psi_rot[b] = (float("inf"), 1.0, 0.0)
-    F.target[b] = spec.steps
-    F.stress_un[b] = spec.stress_min_un
-    F.impact_age[b] = spec.impact_age
+    F.model.frame_every[b] = spec.frame_every
+    F.state.turn_trig[b] = (float("inf"), 1.0, 0.0)  # no turn is inf: computed at the first step (NaN would not do: Taichi compares floats ordered)
+    F.state.psi_rec[b] = (float("inf"), 1.0, 0.0)  # no step's: computed at the first step
+    F.state.psi_rot[b] = (float("inf"), 1.0, 0.0)
+    F.model.target[b] = spec.steps
+    F.model.stress_un[b] = spec.stress_min_un
+    F.model.impact_age[b] = spec.impact_age
     for ct, (law, model) in enumerate(zip((spec.ball_ball, spec.ball_wall), spec.contact_models)):
-        F.variant[b, ct] = F.models[ct].index(model)
-        F.law_k[b, ct] = law.k
-        F.law_c[b, ct] = law.c
-        F.law_d[b, ct] = law.d
-        F.law_kt[b, ct] = law.kt
+        F.model.variant[b, ct] = F.models[ct].index(model)
+        F.model.law_k[b, ct] = law.k
+        F.model.law_c[b, ct] = law.c
+        F.model.law_d[b, ct] = law.d
+        F.model.law_kt[b, ct] = law.kt
     for ct, fr in enumerate(spec.frictions):
         set_friction(F, b, fr, ct)
-    F.n_pieces[b] = len(pieces)
+    F.model.n_pieces[b] = len(pieces)
     lo, h, dim = grid_for(spec)
     if np.prod(dim) > F.grid_cells:
         raise ValueError(f"grid of {np.prod(dim)} cells, fields hold {F.grid_cells}")
-    F.grid_lo[b] = lo
-    F.grid_h[b] = float(h.min())
-    F.grid_dim[b] = dim
-    F.skin[b] = skin_for(spec)
-    F.rebuild[b] = 1
+    F.spatial.grid_lo[b] = lo
+    F.spatial.grid_h[b] = float(h.min())
+    F.spatial.grid_dim[b] = dim
+    F.spatial.skin[b] = skin_for(spec)
+    F.spatial.rebuild[b] = 1
     # one kernel for every per-ball row and the profile rows: a to_numpy/from_numpy pair
     # per field compiled two kernels per field (Taichi's copies are specialised on the
     # field), 36 in all, ≈ 0.8 s CPU of a 10⁵-ball set-up, and copied the whole [B, N]
@@ -62,34 +62,34 @@ def write_mill(F, b: int, spec: MillSpec):
                np.ascontiguousarray(piece_bounds(pieces), dtype=np.float64),
                *(np.ascontiguousarray(a, dtype=np.float64) for a in
                  (spec.position, spec.velocity, spec.spin, spec.radius, spec.mass, 1.0 / spec.inertia)))
-    F.step[b] = 0
-    F.status[b] = S.OK
-    F.bad_ball[b] = -1
-    F.n_events[b] = 0
-    F.n_frames[b] = 0
+    F.state.step[b] = 0
+    F.state.status[b] = S.OK
+    F.state.bad_ball[b] = -1
+    F.out.n_events[b] = 0
+    F.out.n_frames[b] = 0
 
 
 def set_friction(F, b: int, fr: Friction, ct: int):
     """Friction of contact type ct (0 ball-ball, 1 ball-wall) of mill b: μ_s, μ_d, the
     slip speeds v_s, v_d (m/s) and the rolling resistance μ_r. Live-tunable: it is
     field data the next step reads."""
-    F.mu_s[b, ct], F.mu_d[b, ct], F.v_s[b, ct], F.v_d[b, ct], F.mu_r[b, ct] = fr.mu_s, fr.mu_d, fr.v_s, fr.v_d, fr.mu_r
+    F.model.mu_s[b, ct], F.model.mu_d[b, ct], F.model.v_s[b, ct], F.model.v_d[b, ct], F.model.mu_r[b, ct] = fr.mu_s, fr.mu_d, fr.v_s, fr.v_d, fr.mu_r
 
 
 def set_drive(F, b: int, plate: Ramp, jar: Ramp):
     """The drive of mill b from its ramps' t0 on: the plate speed Ω(t) and the jar's
     absolute spin w(t) (rad/s, with their angles in rad), which every step evaluates."""
-    F.plate_ramp[b] = plate.as_tuple()
-    F.jar_ramp[b] = jar.as_tuple()
+    F.model.plate_ramp[b] = plate.as_tuple()
+    F.model.jar_ramp[b] = jar.as_tuple()
 
 
 def set_clock(F, b: int, dt: float, step: int, frame_every: int):
     """The time step dt (s) of mill b, its step counter (the kernels' time is t =
     step·dt, s, so a new dt comes with the step that keeps t) and the steps between
     trajectory frames (which a new dt changes)."""
-    F.dt[b] = dt
-    F.step[b] = step
-    F.frame_every[b] = frame_every
+    F.model.dt[b] = dt
+    F.state.step[b] = step
+    F.model.frame_every[b] = frame_every
 
 
 @ti.kernel
@@ -102,41 +102,41 @@ def _load_mill(F: ti.template(), b: ti.i32, n: ti.i32, n_pieces: ti.i32, pieces:
     contacts."""
     for p in range(n_pieces):
         for c in ti.static(range(PIECE_COLUMNS)):
-            F.piece[b, p][c] = pieces[p, c]
+            F.model.piece[b, p][c] = pieces[p, c]
         for c in ti.static(range(3)):
-            F.piece_bound[b, p][c] = bounds[p, c]
+            F.model.piece_bound[b, p][c] = bounds[p, c]
     for i in range(F.N):
         zero = ti.Vector.zero(ti.f64, 3)
         if i < n:
-            F.x[b, i] = ti.Vector([x[i, 0], x[i, 1], x[i, 2]])
-            F.v[b, i] = ti.Vector([v[i, 0], v[i, 1], v[i, 2]])
-            F.s[b, i] = ti.Vector([s[i, 0], s[i, 1], s[i, 2]])
-            F.r[b, i] = r[i]
-            F.m[b, i] = m[i]
-            F.inv_m[b, i] = 1.0 / m[i]  # reorder._inverse_masses computes it the same way
-            F.inv_i[b, i] = inv_i[i]
+            F.state.x[b, i] = ti.Vector([x[i, 0], x[i, 1], x[i, 2]])
+            F.state.v[b, i] = ti.Vector([v[i, 0], v[i, 1], v[i, 2]])
+            F.state.s[b, i] = ti.Vector([s[i, 0], s[i, 1], s[i, 2]])
+            F.model.r[b, i] = r[i]
+            F.model.m[b, i] = m[i]
+            F.model.inv_m[b, i] = 1.0 / m[i]  # reorder._inverse_masses computes it the same way
+            F.model.inv_i[b, i] = inv_i[i]
         else:
-            F.x[b, i] = zero
-            F.v[b, i] = zero
-            F.s[b, i] = zero
-            F.r[b, i] = 1.0
-            F.m[b, i] = 1.0
-            F.inv_m[b, i] = 1.0
-            F.inv_i[b, i] = 1.0
-        F.f[b, i] = zero
-        F.tau[b, i] = zero
-        F.drive_work[b, i] = 0.0
-        F.dissipated[b, i] = 0.0
-        F.elastic[b, i] = 0.0
-        F.drive_step[b, i] = 0.0
-        F.diss_step[b, i] = 0.0
+            F.state.x[b, i] = zero
+            F.state.v[b, i] = zero
+            F.state.s[b, i] = zero
+            F.model.r[b, i] = 1.0
+            F.model.m[b, i] = 1.0
+            F.model.inv_m[b, i] = 1.0
+            F.model.inv_i[b, i] = 1.0
+        F.state.f[b, i] = zero
+        F.state.tau[b, i] = zero
+        F.state.drive_work[b, i] = 0.0
+        F.state.dissipated[b, i] = 0.0
+        F.state.elastic[b, i] = 0.0
+        F.state.drive_step[b, i] = 0.0
+        F.state.diss_step[b, i] = 0.0
         for c in ti.static(range(S.NMECH)):
-            F.mech[b, i, c] = 0.0
-        F.side_ref[b, i] = ti.Vector([0.0, 0.0, -1.0])  # no bound yet: evaluate the profile first
-        F.slot_mask[b, i] = 0
-        F.slot_closed[b, i] = 0
+            F.state.mech[b, i, c] = 0.0
+        F.state.side_ref[b, i] = ti.Vector([0.0, 0.0, -1.0])  # no bound yet: evaluate the profile first
+        F.contacts.slot_mask[b, i] = 0
+        F.contacts.slot_closed[b, i] = 0
         if ti.static(F.reorder):  # rows in the spec's order until the first list build
-            F.user_of[b, i] = i
-            F.row_of[b, i] = i
-    F.pool_top[b] = 0  # no row released,
-    F.pool_used[b] = 0  # none handed out: rows 0, 1, … come next
+            F.state.user_of[b, i] = i
+            F.state.row_of[b, i] = i
+    F.contacts.pool_top[b] = 0  # no row released,
+    F.contacts.pool_used[b] = 0  # none handed out: rows 0, 1, … come next

@@ -14,38 +14,38 @@ from taimill.physics.grid import cell_coords, cell_index
 @ti.func
 def list_candidate(F: ti.template(), b, i, j):
     """Append j to i's list if within the skin; flags a full list."""
-    d = F.x[b, j] - F.x[b, i]
-    reach = F.r[b, i] + F.r[b, j] + F.skin[b]
+    d = F.state.x[b, j] - F.state.x[b, i]
+    reach = F.model.r[b, i] + F.model.r[b, j] + F.spatial.skin[b]
     if d.norm_sqr() < reach * reach:
-        q = F.nbr_count[b, i]
+        q = F.spatial.nbr_count[b, i]
         if q < S.NEIGHBOURS:
-            F.nbr[b, i, q] = j
-            F.nbr_count[b, i] = q + 1
+            F.spatial.nbr[b, i, q] = j
+            F.spatial.nbr_count[b, i] = q + 1
         else:
-            F.status[b] = S.LIST_FULL
-            F.bad_ball[b] = S.user_id(F, b, i)
+            F.state.status[b] = S.LIST_FULL
+            F.state.bad_ball[b] = S.user_id(F, b, i)
 
 
 @ti.func
 def build_list(F: ti.template(), b, i, use_grid: ti.template()):
     """Neighbour list of ball i, in ascending own index of j (deterministic summation
     order, the same whatever order the rows are in)."""
-    F.nbr_count[b, i] = 0
-    F.x_ref[b, i] = F.x[b, i]
+    F.spatial.nbr_count[b, i] = 0
+    F.spatial.x_ref[b, i] = F.state.x[b, i]
     if ti.static(use_grid):
-        c0 = cell_coords(F, b, F.x[b, i])
+        c0 = cell_coords(F, b, F.state.x[b, i])
         for dz, dy, dx in ti.ndrange((-1, 2), (-1, 2), (-1, 2)):
             c = c0 + ti.Vector([dx, dy, dz])
-            if (c >= 0).all() and (c < F.grid_dim[b]).all():
+            if (c >= 0).all() and (c < F.spatial.grid_dim[b]).all():
                 ci = cell_index(F, b, c)
-                start = F.cell_start[b, ci]
-                for q in range(start, start + F.cell_count[b, ci]):
-                    j = F.sorted_ids[b, q]
+                start = F.spatial.cell_start[b, ci]
+                for q in range(start, start + F.spatial.cell_count[b, ci]):
+                    j = F.spatial.sorted_ids[b, q]
                     if j != i:
                         list_candidate(F, b, i, j)
         sort_list(F, b, i)
     else:
-        for j in range(F.n_balls[b]):
+        for j in range(F.model.n_balls[b]):
             if j != i:
                 list_candidate(F, b, i, j)
 
@@ -53,23 +53,23 @@ def build_list(F: ti.template(), b, i, use_grid: ti.template()):
 @ti.func
 def sort_list(F: ti.template(), b, i):
     """Insertion sort by own index (state.user_id): cells are visited in grid order."""
-    n = F.nbr_count[b, i]
+    n = F.spatial.nbr_count[b, i]
     for a in range(1, n):
-        key = F.nbr[b, i, a]
+        key = F.spatial.nbr[b, i, a]
         rank = S.user_id(F, b, key)
         k = a - 1
         while k >= 0:  # (Taichi's `and` evaluates both sides: no read at k = -1)
-            if S.user_id(F, b, F.nbr[b, i, k]) <= rank:
+            if S.user_id(F, b, F.spatial.nbr[b, i, k]) <= rank:
                 break
-            F.nbr[b, i, k + 1] = F.nbr[b, i, k]
+            F.spatial.nbr[b, i, k + 1] = F.spatial.nbr[b, i, k]
             k -= 1
-        F.nbr[b, i, k + 1] = key
+        F.spatial.nbr[b, i, k + 1] = key
 
 
 @ti.func
 def moved_too_far(F: ti.template(), b, i):
-    half = 0.5 * F.skin[b]
-    return (F.x[b, i] - F.x_ref[b, i]).norm_sqr() > half * half
+    half = 0.5 * F.spatial.skin[b]
+    return (F.state.x[b, i] - F.spatial.x_ref[b, i]).norm_sqr() > half * half
 
 
 @ti.func
@@ -77,16 +77,16 @@ def rebuild_serial(F: ti.template(), b, use_grid: ti.template()):
     """All lists of mill b in one thread (fused mode)."""
     if ti.static(use_grid):
         grid.build_serial(F, b)
-    for i in range(F.n_balls[b]):
+    for i in range(F.model.n_balls[b]):
         build_list(F, b, i, use_grid)
-    F.rebuild[b] = 0
+    F.spatial.rebuild[b] = 0
 
 
 @ti.kernel
 def build_lists_parallel(F: ti.template()):
-    for i in range(F.n_balls[0]):
+    for i in range(F.model.n_balls[0]):
         build_list(F, 0, i, True)
-    F.rebuild[0] = 0
+    F.spatial.rebuild[0] = 0
 
 
 def rebuild_parallel(F):

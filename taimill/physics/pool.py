@@ -29,7 +29,7 @@ def slot_row(F: ti.template(), b, i, k, is_new, taken):
             s = 0
             while mask:
                 if mask & 1:
-                    r = F.slot_row[b, i, s] - i * F.home
+                    r = F.contacts.slot_row[b, i, s] - i * F.home
                     if 0 <= r and r < F.home:
                         used |= 1 << r
                 mask >>= 1
@@ -40,27 +40,27 @@ def slot_row(F: ti.template(), b, i, k, is_new, taken):
             if h < F.home:
                 row = i * F.home + h
         if row < 0:
-            e = ti.atomic_sub(F.pool_top[b], 1) - 1  # a released row first
+            e = ti.atomic_sub(F.contacts.pool_top[b], 1) - 1  # a released row first
             if e >= 0:
-                row = F.pool_free[b, e]
+                row = F.contacts.pool_free[b, e]
             else:  # the stack is empty (its top goes negative until release_rows): a new row
-                row = F.spill_base + ti.atomic_add(F.pool_used[b], 1)
+                row = F.spill_base + ti.atomic_add(F.contacts.pool_used[b], 1)
                 if row >= F.pool_capacity:
                     row = -1
-                    F.status[b] = S.POOL_FULL
-                    F.bad_ball[b] = S.user_id(F, b, i)
+                    F.state.status[b] = S.POOL_FULL
+                    F.state.bad_ball[b] = S.user_id(F, b, i)
         if row >= 0:
-            F.slot_row[b, i, k] = row
+            F.contacts.slot_row[b, i, k] = row
     else:
-        row = F.slot_row[b, i, k]
+        row = F.contacts.slot_row[b, i, k]
     return row
 
 
 @ti.func
 def pool_settle(F: ti.template(), b):
     """After the force pass, before release_rows: the stack is empty if pops ran past it."""
-    if F.pool_top[b] < 0:
-        F.pool_top[b] = 0
+    if F.contacts.pool_top[b] < 0:
+        F.contacts.pool_top[b] = 0
 
 
 @ti.func
@@ -68,17 +68,17 @@ def release_rows(F: ti.template(), b, i):
     """Give the pool rows of ball i's events closed in this step's force pass back: a
     home row to ball i, a shared one to the free stack (a pass without pops:
     pool_settle first)."""
-    gone = F.slot_closed[b, i]
+    gone = F.contacts.slot_closed[b, i]
     if gone:
         k = 0
         while gone:
             if gone & 1:
-                row = F.slot_row[b, i, k]
+                row = F.contacts.slot_row[b, i, k]
                 if row >= F.spill_base:  # a home row is free once no slot holds it
-                    F.pool_free[b, ti.atomic_add(F.pool_top[b], 1)] = row
+                    F.contacts.pool_free[b, ti.atomic_add(F.contacts.pool_top[b], 1)] = row
             gone >>= 1
             k += 1
-        F.slot_closed[b, i] = 0
+        F.contacts.slot_closed[b, i] = 0
 
 
 @ti.func
@@ -91,7 +91,7 @@ def partner_slot(F: ti.template(), b, i, j, taken):
     mask = taken >> S.WALLS
     k = S.WALLS
     while mask:
-        if mask & 1 and F.slot_partner[b, i, k] == j:
+        if mask & 1 and F.contacts.slot_partner[b, i, k] == j:
             found = k
         mask >>= 1
         k += 1
@@ -104,7 +104,7 @@ def partner_slot(F: ti.template(), b, i, j, taken):
             k += 1
         if free >= 0:
             found = free
-            F.slot_partner[b, i, free] = j
+            F.contacts.slot_partner[b, i, free] = j
     return found
 
 
@@ -116,8 +116,8 @@ def claim_row(F: ti.template(), b, i, j, taken, was_open):
     row, is_new = -1, False
     k = partner_slot(F, b, i, j, taken)
     if k < 0:
-        F.status[b] = S.SLOTS_FULL
-        F.bad_ball[b] = S.user_id(F, b, i)
+        F.state.status[b] = S.SLOTS_FULL
+        F.state.bad_ball[b] = S.user_id(F, b, i)
     else:
         is_new = (was_open & (1 << k)) == 0
         row = slot_row(F, b, i, k, is_new, taken)
@@ -132,7 +132,7 @@ def read_history(F: ti.template(), b, row, is_new):
     m_r = ti.Vector([0.0, 0.0, 0.0])
     e_xi, e_mr = 0.0, 0.0
     if row >= 0 and not is_new:
-        q = F.pool[b, row]
+        q = F.contacts.pool[b, row]
         xi = ti.Vector([q[S.SLOT_XI], q[S.SLOT_XI + 1], q[S.SLOT_XI + 2]])
         m_r = ti.Vector([q[S.SLOT_MR], q[S.SLOT_MR + 1], q[S.SLOT_MR + 2]])
         e_xi, e_mr = q[S.SLOT_EXI], q[S.SLOT_EMR]
@@ -143,7 +143,7 @@ def read_history(F: ti.template(), b, row, is_new):
 def write_history(F: ti.template(), b, row, xi, e_xi, m_r, e_mr):
     """Keep a contact's history in its pool row for the next step."""
     for c in ti.static(range(3)):
-        F.pool[b, row][S.SLOT_XI + c] = xi[c]
-        F.pool[b, row][S.SLOT_MR + c] = m_r[c]
-    F.pool[b, row][S.SLOT_EXI] = e_xi
-    F.pool[b, row][S.SLOT_EMR] = e_mr
+        F.contacts.pool[b, row][S.SLOT_XI + c] = xi[c]
+        F.contacts.pool[b, row][S.SLOT_MR + c] = m_r[c]
+    F.contacts.pool[b, row][S.SLOT_EXI] = e_xi
+    F.contacts.pool[b, row][S.SLOT_EMR] = e_mr

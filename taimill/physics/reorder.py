@@ -6,7 +6,7 @@ every such read misses the cache: a dense bed of 10⁵ balls in random row order
 
 At every neighbour-list build, after the counting sort (grid.py) and before the lists,
 each per-ball row moves to its place in the cell order (`permute`): row q takes the
-ball at old row sorted_ids[q]. F.user_of follows the balls, so outputs, events, the
+ball at old row sorted_ids[q]. F.state.user_of follows the balls, so outputs, events, the
 faulting ball and the contact ownership (state.owns: the lower own index) keep using
 the ball's own index; the lists are sorted by own index (neighbours.sort_list), so
 forces are summed in the same order as without the reorder, and results are
@@ -34,33 +34,33 @@ assert _INTS <= S.NEIGHBOURS
 @ti.kernel
 def _inverse(F: ti.template()):
     """cell_of (free after the counting sort) ← new row of each old row."""
-    for q in range(F.n_balls[0]):
-        F.cell_of[0, F.sorted_ids[0, q]] = q
+    for q in range(F.model.n_balls[0]):
+        F.spatial.cell_of[0, F.spatial.sorted_ids[0, q]] = q
 
 
 @ti.kernel
 def _gather_vec(F: ti.template(), a: ti.template()):
-    for q in range(F.n_balls[0]):
-        F.x_ref[0, q] = a[0, F.sorted_ids[0, q]]
+    for q in range(F.model.n_balls[0]):
+        F.spatial.x_ref[0, q] = a[0, F.spatial.sorted_ids[0, q]]
 
 
 @ti.kernel
 def _put_vec(F: ti.template(), a: ti.template()):
-    for q in range(F.n_balls[0]):
-        a[0, q] = F.x_ref[0, q]
+    for q in range(F.model.n_balls[0]):
+        a[0, q] = F.spatial.x_ref[0, q]
 
 
 @ti.kernel
 def _gather_scalars(F: ti.template(), a: ti.template(), b: ti.template(), c: ti.template()):
-    for q in range(F.n_balls[0]):
-        p = F.sorted_ids[0, q]
-        F.x_ref[0, q] = ti.Vector([a[0, p], b[0, p], c[0, p]])
+    for q in range(F.model.n_balls[0]):
+        p = F.spatial.sorted_ids[0, q]
+        F.spatial.x_ref[0, q] = ti.Vector([a[0, p], b[0, p], c[0, p]])
 
 
 @ti.kernel
 def _put_scalars(F: ti.template(), a: ti.template(), b: ti.template(), c: ti.template()):
-    for q in range(F.n_balls[0]):
-        row = F.x_ref[0, q]
+    for q in range(F.model.n_balls[0]):
+        row = F.spatial.x_ref[0, q]
         a[0, q] = row[0]
         b[0, q] = row[1]
         c[0, q] = row[2]
@@ -68,95 +68,95 @@ def _put_scalars(F: ti.template(), a: ti.template(), b: ti.template(), c: ti.tem
 
 @ti.kernel
 def _inverse_masses(F: ti.template()):
-    for q in range(F.n_balls[0]):
-        F.inv_m[0, q] = 1.0 / F.m[0, q]  # as mill.load_mill computed it: the same bits
+    for q in range(F.model.n_balls[0]):
+        F.model.inv_m[0, q] = 1.0 / F.model.m[0, q]  # as mill.load_mill computed it: the same bits
 
 
 @ti.kernel
 def _gather_mech(F: ti.template(), c0: ti.template()):
-    for q in range(F.n_balls[0]):
-        p = F.sorted_ids[0, q]
+    for q in range(F.model.n_balls[0]):
+        p = F.spatial.sorted_ids[0, q]
         row = ti.Vector.zero(ti.f64, 3)
         for k in ti.static(range(3)):
             if ti.static(c0 + k < S.NMECH):
-                row[k] = F.mech[0, p, c0 + k]
-        F.x_ref[0, q] = row
+                row[k] = F.state.mech[0, p, c0 + k]
+        F.spatial.x_ref[0, q] = row
 
 
 @ti.kernel
 def _put_mech(F: ti.template(), c0: ti.template()):
-    for q in range(F.n_balls[0]):
-        row = F.x_ref[0, q]
+    for q in range(F.model.n_balls[0]):
+        row = F.spatial.x_ref[0, q]
         for k in ti.static(range(3)):
             if ti.static(c0 + k < S.NMECH):
-                F.mech[0, q, c0 + k] = row[k]
+                F.state.mech[0, q, c0 + k] = row[k]
 
 
 @ti.kernel
 def _gather_home(F: ti.template(), h: ti.i32, c0: ti.i32):
     """Columns c0..c0+2 of home row h of every ball. (h and c0 are arguments, not
     templates: two kernels to compile, not one per row and column, ≈ 0.15 s each.)"""
-    for q in range(F.n_balls[0]):
-        data = F.pool[0, F.sorted_ids[0, q] * F.home + h]
+    for q in range(F.model.n_balls[0]):
+        data = F.contacts.pool[0, F.spatial.sorted_ids[0, q] * F.home + h]
         row = ti.Vector.zero(ti.f64, 3)
         for k, c in ti.static(ti.ndrange(3, S.SLOT_DATA)):
             if c == c0 + k:
                 row[k] = data[c]
-        F.x_ref[0, q] = row
+        F.spatial.x_ref[0, q] = row
 
 
 @ti.kernel
 def _put_home(F: ti.template(), h: ti.i32, c0: ti.i32):
-    for q in range(F.n_balls[0]):
-        row = F.x_ref[0, q]
-        data = F.pool[0, q * F.home + h]
+    for q in range(F.model.n_balls[0]):
+        row = F.spatial.x_ref[0, q]
+        data = F.contacts.pool[0, q * F.home + h]
         for k, c in ti.static(ti.ndrange(3, S.SLOT_DATA)):
             if c == c0 + k:
                 data[c] = row[k]
-        F.pool[0, q * F.home + h] = data
+        F.contacts.pool[0, q * F.home + h] = data
 
 
 @ti.kernel
 def _gather_ints(F: ti.template()):
-    for q in range(F.n_balls[0]):
-        p = F.sorted_ids[0, q]
-        mask = F.slot_mask[0, p]
-        F.nbr[0, q, 0] = mask
-        F.nbr[0, q, 1] = F.user_of[0, p]
+    for q in range(F.model.n_balls[0]):
+        p = F.spatial.sorted_ids[0, q]
+        mask = F.contacts.slot_mask[0, p]
+        F.spatial.nbr[0, q, 0] = mask
+        F.spatial.nbr[0, q, 1] = F.state.user_of[0, p]
         for k in ti.static(range(S.SLOTS)):
-            row = F.slot_row[0, p, k]
+            row = F.contacts.slot_row[0, p, k]
             partner = -1
             if mask & (1 << k):
                 if row < F.spill_base:  # a home row: it moved with the ball
                     row += (q - p) * F.home
                 if ti.static(k >= S.WALLS):
-                    partner = F.cell_of[0, F.slot_partner[0, p, k]]
-            F.nbr[0, q, 2 + k] = row
-            F.nbr[0, q, 2 + S.SLOTS + k] = partner
+                    partner = F.spatial.cell_of[0, F.contacts.slot_partner[0, p, k]]
+            F.spatial.nbr[0, q, 2 + k] = row
+            F.spatial.nbr[0, q, 2 + S.SLOTS + k] = partner
 
 
 @ti.kernel
 def _put_ints(F: ti.template()):
     """Also the grid's order: the rows are now in it (sorted_ids the identity)."""
-    for q in range(F.n_balls[0]):
-        F.slot_mask[0, q] = F.nbr[0, q, 0]
-        u = F.nbr[0, q, 1]
-        F.user_of[0, q] = u
-        F.row_of[0, u] = q
+    for q in range(F.model.n_balls[0]):
+        F.contacts.slot_mask[0, q] = F.spatial.nbr[0, q, 0]
+        u = F.spatial.nbr[0, q, 1]
+        F.state.user_of[0, q] = u
+        F.state.row_of[0, u] = q
         for k in ti.static(range(S.SLOTS)):
-            F.slot_row[0, q, k] = F.nbr[0, q, 2 + k]
-            F.slot_partner[0, q, k] = F.nbr[0, q, 2 + S.SLOTS + k]
-        F.sorted_ids[0, q] = q
+            F.contacts.slot_row[0, q, k] = F.spatial.nbr[0, q, 2 + k]
+            F.contacts.slot_partner[0, q, k] = F.spatial.nbr[0, q, 2 + S.SLOTS + k]
+        F.spatial.sorted_ids[0, q] = q
 
 
 def permute(F):
-    """Move every ball row of mill 0 to its place in the grid order (F.sorted_ids of
+    """Move every ball row of mill 0 to its place in the grid order (F.spatial.sorted_ids of
     the counting sort just done); the grid stays valid (cell_start, cell_count)."""
     _inverse(F)
-    for a in (F.x, F.v, F.s, F.side_ref):
+    for a in (F.state.x, F.state.v, F.state.s, F.state.side_ref):
         _gather_vec(F, a)
         _put_vec(F, a)
-    for group in ((F.r, F.m, F.inv_i), (F.drive_work, F.dissipated, F.elastic)):
+    for group in ((F.model.r, F.model.m, F.model.inv_i), (F.state.drive_work, F.state.dissipated, F.state.elastic)):
         _gather_scalars(F, *group)
         _put_scalars(F, *group)
     for c0 in range(0, S.NMECH, 3):

@@ -13,9 +13,9 @@ def respond(model: ti.template(), F: ti.template(), b, ct: ti.template(), u, udo
             dt, xi):
     """(F_n, elastic F_n, friction force, tangential history, its stored energy) of the
     ContactModel `model` (compiled in); xi: the contact's tangential history."""
-    fn, fel = normal_force(model.normal, u, udot, F.law_k[b, ct], F.law_c[b, ct], F.law_d[b, ct], m_eff)
-    ft, xi_new, e_t = TANGENTIAL[model.tangential.name](slip, nrm, fn, u, F.mu_s[b, ct], F.mu_d[b, ct], F.v_s[b, ct],
-                                                        F.v_d[b, ct], F.law_kt[b, ct], xi, inv_mass_t, dt)
+    fn, fel = normal_force(model.normal, u, udot, F.model.law_k[b, ct], F.model.law_c[b, ct], F.model.law_d[b, ct], m_eff)
+    ft, xi_new, e_t = TANGENTIAL[model.tangential.name](slip, nrm, fn, u, F.model.mu_s[b, ct], F.model.mu_d[b, ct], F.model.v_s[b, ct],
+                                                        F.model.v_d[b, ct], F.model.law_kt[b, ct], xi, inv_mass_t, dt)
     return fn, fel, ft, xi_new, e_t
 
 
@@ -26,7 +26,7 @@ def contact_response(F: ti.template(), b, ct: ti.template(), u, nrm, vrel, m_eff
     vrel, tangential history xi (zero for a new contact; kept only by history models).
     Returns (force, u̇, slip, F_n, elastic F_n, friction force, new tangential history,
     its stored energy). The contact model is the engine's only one for ct (F.models[ct],
-    compiled in), or, when a batch mixes models, the one F.variant[b, ct] picks among
+    compiled in), or, when a batch mixes models, the one F.model.variant[b, ct] picks among
     them. Rolling resistance (if on) is added by the caller, who knows the spins; its
     work is booked with the friction work (the shear part of the contact's dissipation)."""
     udot = vrel.dot(nrm)
@@ -38,7 +38,7 @@ def contact_response(F: ti.template(), b, ct: ti.template(), u, nrm, vrel, m_eff
         fn, fel, ft, xi_new, e_t = respond(F.models[ct][0], F, b, ct, u, udot, slip, nrm, m_eff, inv_mass_t, dt, xi)
     else:
         for v in ti.static(range(len(F.models[ct]))):
-            if F.variant[b, ct] == v:
+            if F.model.variant[b, ct] == v:
                 fn, fel, ft, xi_new, e_t = respond(F.models[ct][v], F, b, ct, u, udot, slip, nrm, m_eff, inv_mass_t,
                                                    dt, xi)
     return -fn * nrm + ft, udot, slip, fn, fel, ft, xi_new, e_t
@@ -52,7 +52,7 @@ def stored_energy(F: ti.template(), b, ct: ti.template(), u, fel):
         el = elastic_energy(u, fel, ti.static(F.models[ct][0].normal.n))
     else:
         for v in ti.static(range(len(F.models[ct]))):
-            if F.variant[b, ct] == v:
+            if F.model.variant[b, ct] == v:
                 el = elastic_energy(u, fel, ti.static(F.models[ct][v].normal.n))
     return el
 
@@ -61,18 +61,18 @@ def stored_energy(F: ti.template(), b, ct: ti.template(), u, fel):
 def rolling_response(F: ti.template(), b, ct: ti.template(), spin_rel, nrm, fn, fel, u, r_eff, inv_inertia, dt, m_r):
     """(torque on the first body, work it removes over the step, new rolling history,
     its stored energy) of the rolling model of contact type ct; m_r: the contact's
-    rolling history. The caller calls it only while F.mu_r[b, ct] > 0."""
+    rolling history. The caller calls it only while F.model.mu_r[b, ct] > 0."""
     tq = ti.Vector([0.0, 0.0, 0.0])
     d, e_r = 0.0, 0.0
     m_new = m_r
     if ti.static(len(F.models[ct]) == 1):
-        tq, d, m_new, e_r = ROLLING[F.models[ct][0].rolling.name](spin_rel, nrm, fn, fel, u, F.law_kt[b, ct],
-                                                                 F.mu_r[b, ct], r_eff, m_r, inv_inertia, dt)
+        tq, d, m_new, e_r = ROLLING[F.models[ct][0].rolling.name](spin_rel, nrm, fn, fel, u, F.model.law_kt[b, ct],
+                                                                 F.model.mu_r[b, ct], r_eff, m_r, inv_inertia, dt)
     else:
         for v in ti.static(range(len(F.models[ct]))):
-            if F.variant[b, ct] == v:
-                tq, d, m_new, e_r = ROLLING[F.models[ct][v].rolling.name](spin_rel, nrm, fn, fel, u, F.law_kt[b, ct],
-                                                                         F.mu_r[b, ct], r_eff, m_r, inv_inertia, dt)
+            if F.model.variant[b, ct] == v:
+                tq, d, m_new, e_r = ROLLING[F.models[ct][v].rolling.name](spin_rel, nrm, fn, fel, u, F.model.law_kt[b, ct],
+                                                                         F.model.mu_r[b, ct], r_eff, m_r, inv_inertia, dt)
     return tq, d, m_new, e_r
 
 

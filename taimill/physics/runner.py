@@ -234,10 +234,10 @@ class Runner:
 
     def done(self) -> bool:
         F = self.engine.F
-        return all(int(F.step[b]) >= int(F.target[b]) or int(F.status[b]) != S.OK for b in range(self.engine.B))
+        return all(int(F.state.step[b]) >= int(F.model.target[b]) or int(F.state.status[b]) != S.OK for b in range(self.engine.B))
 
     def time(self, b: int) -> float:
-        return int(self.engine.F.step[b]) * self.specs[b].dt
+        return int(self.engine.F.state.step[b]) * self.specs[b].dt
 
     def launch(self, sinks) -> list[str | None]:
         """One launch and drain; returns per mill None or the fault message."""
@@ -255,8 +255,8 @@ class Runner:
             if len(frames["time"]):
                 sink.frames(frames)
                 sink.energy({"time": frames["time"], **{k: ledger[:, c] for c, k in enumerate(S.LEDGER_FIELDS)}})
-            code = int(self.engine.F.status[b])
-            faults.append(None if code == S.OK else status_message(code, int(self.engine.F.bad_ball[b]), self.time(b), self.specs[b].dt,
+            code = int(self.engine.F.state.status[b])
+            faults.append(None if code == S.OK else status_message(code, int(self.engine.F.state.bad_ball[b]), self.time(b), self.specs[b].dt,
                                                                      self.engine.F.pool_capacity))
         return faults
 

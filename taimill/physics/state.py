@@ -1,8 +1,9 @@
-"""Taichi fields of a batch of B independent mills with up to N balls each.
-
-Model (fixed during a run, written by the launcher; live-tunable values such as the
-drive ramps and friction are field values, never Python globals, frozen at compile time) is
-kept apart from State (evolving). Shapes in brackets, SI units.
+"""Taichi fields of a batch of B independent mills with up to N balls each, split by
+kind: fixed parameters (`F.model`: written by the launcher; live-tunable values such as
+the drive ramps and friction are field values, never Python globals, frozen at compile
+time), evolving state (`F.state`), contact bookkeeping (`F.contacts`), spatial
+structures (`F.spatial`) and output buffers (`F.out`). The sizes and the compiled
+contact models stay on the Fields object itself. Shapes in brackets, SI units.
 """
 
 import taichi as ti
@@ -78,6 +79,34 @@ CONTACT_TYPES = 2  # 0 ball-ball, 1 ball-wall
 LAWS_DEFAULT = "adams-impact"
 
 
+class MillModel:
+    """Fixed parameters: of each mill [B] (time step, drive ramps, gravity, jar profile,
+    contact coefficients per contact type [B, 2]) and of each ball [B, N] (radius,
+    mass, inverse inertia). Written by the launcher (mill.py); the live-tunable ones
+    (drive ramps, dt, friction) through mill.py's setters."""
+
+
+class MillState:
+    """What evolves: ball positions, velocities, spins, this step's forces and energy
+    books [B, N]; each mill's step, status and the drive's cached trigonometry [B]."""
+
+
+class ContactBook:
+    """Open contacts: per-ball slots [B, N, SLOTS] and the pool of rows holding their
+    event accumulators and history [B, P] (pool.py, events.py)."""
+
+
+class Spatial:
+    """The spatial hash grid [B, cells] and the Verlet neighbour lists [B, N, NEIGHBOURS]."""
+
+
+class Outputs:
+    """Buffers of events and frames, drained by the launcher after every launch."""
+
+
+GROUPS = ("model", "state", "contacts", "spatial", "out")
+
+
 def default_models() -> tuple:
     """The thesis' contact model for both contact types (adams-impact, regularised
     Coulomb friction, constant rolling torque)."""
@@ -117,108 +146,118 @@ class Fields:
         self.grid_cells = grid_cells
         f64, i32, i64 = ti.f64, ti.i32, ti.i64
         vec3 = ti.types.vector(3, f64)
+        model, state, contacts, spatial, out = self.model, self.state, self.contacts, self.spatial, self.out = (
+            MillModel(), MillState(), ContactBook(), Spatial(), Outputs())
 
         # ---- model, per mill [B]
-        self.n_balls = ti.field(i32, B)
-        self.dt = ti.field(f64, B)  #: s
-        self.gravity = ti.field(f64, B)  #: m/s²
-        self.plate_radius = ti.field(f64, B)  #: R_p, m
-        self.height = ti.field(f64, B)  #: jar height, m
-        self.plate_ramp = ti.Vector.field(5, f64, B)  #: Ω ramp (t0, start, end, T, phase0)
-        self.jar_ramp = ti.Vector.field(5, f64, B)  #: w ramp, absolute jar spin
-        self.frame_every = ti.field(i32, B)  #: steps between frames
-        self.turn_trig = ti.Vector.field(3, f64, B)  #: (Δφ_jar, cos, sin) of the last step's turn (engine.drive)
-        self.psi_rec = ti.Vector.field(3, f64, B)  #: (t, cos ψ, sin ψ) of the last step's drive (engine.psi_trig)
-        self.psi_rot = ti.Vector.field(3, f64, B)  #: (δ, cos δ, sin δ), ψ's growth a step at constant speeds
-        self.target = ti.field(i64, B)  #: step count to reach
+        model.n_balls = ti.field(i32, B)
+        model.dt = ti.field(f64, B)  #: s
+        model.gravity = ti.field(f64, B)  #: m/s²
+        model.plate_radius = ti.field(f64, B)  #: R_p, m
+        model.height = ti.field(f64, B)  #: jar height, m
+        model.plate_ramp = ti.Vector.field(5, f64, B)  #: Ω ramp (t0, start, end, T, phase0)
+        model.jar_ramp = ti.Vector.field(5, f64, B)  #: w ramp, absolute jar spin
+        model.frame_every = ti.field(i32, B)  #: steps between frames
+        model.target = ti.field(i64, B)  #: step count to reach
         # class of a contact for the mechanism ledger (taimill.model.mechanisms) [B]
-        self.stress_un = ti.field(f64, B)  #: m/s, least onset normal speed of an impact
-        self.impact_age = ti.field(f64, B)  #: s, an impact older than this is persistent
+        model.stress_un = ti.field(f64, B)  #: m/s, least onset normal speed of an impact
+        model.impact_age = ti.field(f64, B)  #: s, an impact older than this is persistent
         # contact model per contact type [B, 2] (0 ball-ball, 1 ball-wall): one of the
         # engine's compiled models (self.models[ct], variant only if it has several)
         # and the normal law's coefficients
-        self.variant = ti.field(i32, (B, CONTACT_TYPES))  #: index into self.models[ct]
-        self.law_k = ti.field(f64, (B, CONTACT_TYPES))  #: stiffness, N/m^n
-        self.law_c = ti.field(f64, (B, CONTACT_TYPES))  #: damping coefficient, unit of the damping model
-        self.law_d = ti.field(f64, (B, CONTACT_TYPES))  #: m, full-damping overlap (adams-step)
-        self.law_kt = ti.field(f64, (B, CONTACT_TYPES))  #: N/m^1.5, tangential stiffness per √u (history models)
+        model.variant = ti.field(i32, (B, CONTACT_TYPES))  #: index into self.models[ct]
+        model.law_k = ti.field(f64, (B, CONTACT_TYPES))  #: stiffness, N/m^n
+        model.law_c = ti.field(f64, (B, CONTACT_TYPES))  #: damping coefficient, unit of the damping model
+        model.law_d = ti.field(f64, (B, CONTACT_TYPES))  #: m, full-damping overlap (adams-step)
+        model.law_kt = ti.field(f64, (B, CONTACT_TYPES))  #: N/m^1.5, tangential stiffness per √u (history models)
         # friction (eq 3.7) and rolling resistance per contact type, live-tunable [B, 2]
-        self.mu_s = ti.field(f64, (B, CONTACT_TYPES))
-        self.mu_d = ti.field(f64, (B, CONTACT_TYPES))
-        self.v_s = ti.field(f64, (B, CONTACT_TYPES))  #: m/s
-        self.v_d = ti.field(f64, (B, CONTACT_TYPES))  #: m/s
-        self.mu_r = ti.field(f64, (B, CONTACT_TYPES))  #: 0: no rolling resistance
+        model.mu_s = ti.field(f64, (B, CONTACT_TYPES))
+        model.mu_d = ti.field(f64, (B, CONTACT_TYPES))
+        model.v_s = ti.field(f64, (B, CONTACT_TYPES))  #: m/s
+        model.v_d = ti.field(f64, (B, CONTACT_TYPES))  #: m/s
+        model.mu_r = ti.field(f64, (B, CONTACT_TYPES))  #: 0: no rolling resistance
         # jar profile: boundary pieces, rows of taimill.model.geometry [B, MAX_PIECES]
-        self.n_pieces = ti.field(i32, B)
-        self.piece = ti.Vector.field(PIECE_COLUMNS, f64, (B, MAX_PIECES))
-        self.piece_bound = ti.Vector.field(3, f64, (B, MAX_PIECES))  #: m, geometry.piece_bounds rows
+        model.n_pieces = ti.field(i32, B)
+        model.piece = ti.Vector.field(PIECE_COLUMNS, f64, (B, MAX_PIECES))
+        model.piece_bound = ti.Vector.field(3, f64, (B, MAX_PIECES))  #: m, geometry.piece_bounds rows
         # uniform grid of the spatial hash [B]
-        self.grid_lo = ti.Vector.field(3, f64, B)  #: m, corner of the grid
-        self.grid_h = ti.field(f64, B)  #: m, cell edge (≥ largest ball diameter)
-        self.grid_dim = ti.Vector.field(3, i32, B)
-        self.skin = ti.field(f64, B)  #: m, Verlet-list skin
+        spatial.grid_lo = ti.Vector.field(3, f64, B)  #: m, corner of the grid
+        spatial.grid_h = ti.field(f64, B)  #: m, cell edge (≥ largest ball diameter)
+        spatial.grid_dim = ti.Vector.field(3, i32, B)
+        spatial.skin = ti.field(f64, B)  #: m, Verlet-list skin
 
         # ---- per ball [B, N]
-        self.r = ti.field(f64, (B, N))  #: m
-        self.m = ti.field(f64, (B, N))  #: kg
-        self.inv_i = ti.field(f64, (B, N))  #: 1/(kg m²)
-        self.inv_m = ti.field(f64, (B, N))  #: 1/kg
+        model.r = ti.field(f64, (B, N))  #: m
+        model.m = ti.field(f64, (B, N))  #: kg
+        model.inv_i = ti.field(f64, (B, N))  #: 1/(kg m²)
+        model.inv_m = ti.field(f64, (B, N))  #: 1/kg
 
-        # ---- state [B, N]
-        self.x = ti.field(vec3, (B, N))  #: position, jar frame, m
-        self.v = ti.field(vec3, (B, N))  #: velocity, jar frame, m/s
-        self.s = ti.field(vec3, (B, N))  #: absolute spin in jar-frame components, rad/s
-        self.f = ti.field(vec3, (B, N))  #: contact force of this step, N
-        self.tau = ti.field(vec3, (B, N))  #: contact torque of this step, N m
-        self.drive_step = ti.field(f64, (B, N))  #: J, walls' work on this ball in this step
-        self.diss_step = ti.field(f64, (B, N))  #: J, dissipated in its contacts this step
-        self.drive_work = ti.field(f64, (B, N))  #: J, walls' work on this ball
-        self.dissipated = ti.field(f64, (B, N))  #: J, in contacts this ball owns
-        self.mech = ti.field(f64, (B, N, NMECH))  #: J, dissipation by mechanism, booked in the force pass
-        self.elastic = ti.field(f64, (B, N))  #: J, stored now in contacts this ball owns
-        self.side_ref = ti.field(ti.types.vector(3, f64), (B, N))  #: m, (x₀, y₀, lower bound of φ there), walls.side_wall_near
+        # ---- state [B, N], and per mill [B]
+        state.turn_trig = ti.Vector.field(3, f64, B)  #: (Δφ_jar, cos, sin) of the last step's turn (engine.drive)
+        state.psi_rec = ti.Vector.field(3, f64, B)  #: (t, cos ψ, sin ψ) of the last step's drive (engine.psi_trig)
+        state.psi_rot = ti.Vector.field(3, f64, B)  #: (δ, cos δ, sin δ), ψ's growth a step at constant speeds
+        state.x = ti.field(vec3, (B, N))  #: position, jar frame, m
+        state.v = ti.field(vec3, (B, N))  #: velocity, jar frame, m/s
+        state.s = ti.field(vec3, (B, N))  #: absolute spin in jar-frame components, rad/s
+        state.f = ti.field(vec3, (B, N))  #: contact force of this step, N
+        state.tau = ti.field(vec3, (B, N))  #: contact torque of this step, N m
+        state.drive_step = ti.field(f64, (B, N))  #: J, walls' work on this ball in this step
+        state.diss_step = ti.field(f64, (B, N))  #: J, dissipated in its contacts this step
+        state.drive_work = ti.field(f64, (B, N))  #: J, walls' work on this ball
+        state.dissipated = ti.field(f64, (B, N))  #: J, in contacts this ball owns
+        state.mech = ti.field(f64, (B, N, NMECH))  #: J, dissipation by mechanism, booked in the force pass
+        state.elastic = ti.field(f64, (B, N))  #: J, stored now in contacts this ball owns
+        state.side_ref = ti.field(ti.types.vector(3, f64), (B, N))  #: m, (x₀, y₀, lower bound of φ there), walls.side_wall_near
         ids = (B, N) if reorder else (1, 1)
-        self.user_of = ti.field(i32, ids)  #: the ball's own index (its index in the MillSpec) of row i
-        self.row_of = ti.field(i32, ids)  #: row of the ball with own index u (inverse of user_of)
-        self.step = ti.field(i64, B)
-        self.status = ti.field(i32, B)
-        self.bad_ball = ti.field(i32, B)  #: own index (user_id) of the ball that raised the status
+        state.user_of = ti.field(i32, ids)  #: the ball's own index (its index in the MillSpec) of row i
+        state.row_of = ti.field(i32, ids)  #: row of the ball with own index u (inverse of user_of)
+        state.step = ti.field(i64, B)
+        state.status = ti.field(i32, B)
+        state.bad_ball = ti.field(i32, B)  #: own index (user_id) of the ball that raised the status
 
         # ---- open contacts [B, N, SLOTS], their event data in a pool of rows [B, P]
-        self.slot_mask = ti.field(i32, (B, N))  #: bit k set: slot k holds an open event
-        self.slot_closed = ti.field(i32, (B, N))  #: bit k set: slot k closed this step, its row not yet released
-        self.slot_partner = ti.field(i32, (B, N, SLOTS))  #: partner ball of slot k ≥ WALLS
-        self.slot_row = ti.field(i32, (B, N, SLOTS))  #: pool row of open slot k
-        self.pool = ti.Vector.field(self.pool_width, f64, (B, P))  #: event accumulators (and history) of an open contact
-        self.pool_free = ti.field(i32, (B, max(1, P - self.spill_base)))  #: stack of released shared rows, [0, pool_top)
-        self.pool_top = ti.field(i32, B)
-        self.pool_used = ti.field(i32, B)  #: shared rows ever handed out: spill_base + [0, pool_used)
+        contacts.slot_mask = ti.field(i32, (B, N))  #: bit k set: slot k holds an open event
+        contacts.slot_closed = ti.field(i32, (B, N))  #: bit k set: slot k closed this step, its row not yet released
+        contacts.slot_partner = ti.field(i32, (B, N, SLOTS))  #: partner ball of slot k ≥ WALLS
+        contacts.slot_row = ti.field(i32, (B, N, SLOTS))  #: pool row of open slot k
+        contacts.pool = ti.Vector.field(self.pool_width, f64, (B, P))  #: event accumulators (and history) of an open contact
+        contacts.pool_free = ti.field(i32, (B, max(1, P - self.spill_base)))  #: stack of released shared rows, [0, pool_top)
+        contacts.pool_top = ti.field(i32, B)
+        contacts.pool_used = ti.field(i32, B)  #: shared rows ever handed out: spill_base + [0, pool_used)
         shared = (B, N, SLOTS) if share_pairs else (1, 1, 1)
-        self.pair_f = ti.field(vec3, shared)  #: N, force of this step on the partner of slot k
-        self.pair_tq = ti.field(vec3, shared)  #: N m, torque of this step on the partner of slot k
+        contacts.pair_f = ti.field(vec3, shared)  #: N, force of this step on the partner of slot k
+        contacts.pair_tq = ti.field(vec3, shared)  #: N m, torque of this step on the partner of slot k
 
         # ---- spatial hash [B, cells] and [B, N]
-        self.cell_count = ti.field(i32, (B, grid_cells))
-        self.cell_start = ti.field(i32, (B, grid_cells))
-        self.cell_of = ti.field(i32, (B, N))
-        self.sorted_ids = ti.field(i32, (B, N))
+        spatial.cell_count = ti.field(i32, (B, grid_cells))
+        spatial.cell_start = ti.field(i32, (B, grid_cells))
+        spatial.cell_of = ti.field(i32, (B, N))
+        spatial.sorted_ids = ti.field(i32, (B, N))
 
         # ---- Verlet neighbour lists [B, N, NEIGHBOURS]
-        self.rebuild = ti.field(i32, B)  #: 1: lists are stale
-        self.x_ref = ti.field(vec3, (B, N))  #: positions at the last build, m (scratch of reorder.py before it)
-        self.nbr_count = ti.field(i32, (B, N))
-        self.nbr = ti.field(i32, (B, N, NEIGHBOURS))  #: neighbour rows (scratch of reorder.py before a build)
+        spatial.rebuild = ti.field(i32, B)  #: 1: lists are stale
+        spatial.x_ref = ti.field(vec3, (B, N))  #: positions at the last build, m (scratch of reorder.py before it)
+        spatial.nbr_count = ti.field(i32, (B, N))
+        spatial.nbr = ti.field(i32, (B, N, NEIGHBOURS))  #: neighbour rows (scratch of reorder.py before a build)
 
         # ---- output buffers, drained by the launcher after every launch
-        self.events = ti.Vector.field(NCOL, f64, (B, event_capacity))
-        self.n_events = ti.field(i32, B)
-        self.frame_t = ti.field(f64, (B, frame_capacity))
-        self.frame_x = ti.field(vec3, (B, frame_capacity, N))
-        self.frame_v = ti.field(vec3, (B, frame_capacity, N))
-        self.frame_s = ti.field(vec3, (B, frame_capacity, N))
-        self.frame_ledger = ti.Vector.field(len(LEDGER_FIELDS), f64, (B, frame_capacity))
-        self.frame_drive = ti.Vector.field(len(DRIVE_FIELDS), f64, (B, frame_capacity))  #: φ_p, Ω, φ_j, w
-        self.n_frames = ti.field(i32, B)
+        out.events = ti.Vector.field(NCOL, f64, (B, event_capacity))
+        out.n_events = ti.field(i32, B)
+        out.frame_t = ti.field(f64, (B, frame_capacity))
+        out.frame_x = ti.field(vec3, (B, frame_capacity, N))
+        out.frame_v = ti.field(vec3, (B, frame_capacity, N))
+        out.frame_s = ti.field(vec3, (B, frame_capacity, N))
+        out.frame_ledger = ti.Vector.field(len(LEDGER_FIELDS), f64, (B, frame_capacity))
+        out.frame_drive = ti.Vector.field(len(DRIVE_FIELDS), f64, (B, frame_capacity))  #: φ_p, Ω, φ_j, w
+        out.n_frames = ti.field(i32, B)
+
+
+    def field(self, name: str):
+        """The field called `name`, in whichever group holds it."""
+        for group in GROUPS:
+            if hasattr(getattr(self, group), name):
+                return getattr(getattr(self, group), name)
+        raise AttributeError(name)
 
 
 @ti.func
@@ -226,7 +265,7 @@ def user_id(F: ti.template(), b, i):
     """The ball's own index (its index in the MillSpec, in every output) of row i."""
     u = i
     if ti.static(F.reorder):
-        u = F.user_of[b, i]
+        u = F.state.user_of[b, i]
     return u
 
 
@@ -236,5 +275,5 @@ def owns(F: ti.template(), b, i, j):
     index, so a contact keeps its owner when the rows are reordered."""
     mine = i < j
     if ti.static(F.reorder):
-        mine = F.user_of[b, i] < F.user_of[b, j]
+        mine = F.state.user_of[b, i] < F.state.user_of[b, j]
     return mine

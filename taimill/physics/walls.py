@@ -52,24 +52,24 @@ def piece_closest(row, p):
 def profile_sdf(F: ti.template(), b, p):
     """(φ, ∇φ) of the profile at the 2-D point p: the nearest piece, signed by its
     inward normal. Pieces that cannot be the nearest are skipped: each has a point m
-    on it and a radius ρ around m holding it (F.piece_bound, geometry.piece_bounds);
+    on it and a radius ρ around m holding it (F.model.piece_bound, geometry.piece_bounds);
     the nearest m bounds the distance from above, |p - m| - ρ a piece's from below."""
-    n_pieces = F.n_pieces[b]
+    n_pieces = F.model.n_pieces[b]
     reach = BIG
     if n_pieces > 1:
         near = BIG
         for k in range(n_pieces):
-            m = F.piece_bound[b, k]
+            m = F.model.piece_bound[b, k]
             near = ti.min(near, (p - ti.Vector([m[0], m[1]])).norm_sqr())
         reach = ti.sqrt(near) + BOUND_SLACK
     best = BIG
     phi = BIG
     grad = ti.Vector([0.0, 0.0])
     for k in range(n_pieces):
-        m = F.piece_bound[b, k]
+        m = F.model.piece_bound[b, k]
         lim = reach + m[2]
         if (p - ti.Vector([m[0], m[1]])).norm_sqr() <= lim * lim:
-            q, n = piece_closest(F.piece[b, k], p)
+            q, n = piece_closest(F.model.piece[b, k], p)
             v = p - q
             dist = v.norm()
             if dist < best:
@@ -86,9 +86,9 @@ def profile_sdf(F: ti.template(), b, p):
 def side_wall_near(F: ti.template(), b, i, x, reach):
     """(φ, ∇φ) of the side wall at ball i's centre x where φ < reach, else (reach, 0):
     beyond reach only "no contact" matters. φ is 1-Lipschitz, so φ(x) ≥ φ(x₀) - |x - x₀|
-    from the last exact value at x₀ (F.side_ref) decides that without the profile
+    from the last exact value at x₀ (F.state.side_ref) decides that without the profile
     while the ball is far from the wall."""
-    ref = F.side_ref[b, i]  # x₀, y₀, φ(x₀) - BOUND_SLACK
+    ref = F.state.side_ref[b, i]  # x₀, y₀, φ(x₀) - BOUND_SLACK
     dx, dy = x[0] - ref[0], x[1] - ref[1]
     slack = ref[2] - reach
     phi = reach
@@ -96,7 +96,7 @@ def side_wall_near(F: ti.template(), b, i, x, reach):
     if not (slack > 0.0 and dx * dx + dy * dy < slack * slack):
         p2, g2 = profile_sdf(F, b, ti.Vector([x[0], x[1]]))
         phi, grad = p2, ti.Vector([g2[0], g2[1], 0.0])
-        F.side_ref[b, i] = ti.Vector([x[0], x[1], p2 - BOUND_SLACK])
+        F.state.side_ref[b, i] = ti.Vector([x[0], x[1], p2 - BOUND_SLACK])
     return phi, grad
 
 
@@ -123,5 +123,5 @@ def wall_sdf(F: ti.template(), b, wall: ti.template(), x):
     elif ti.static(wall == FLOOR):
         phi, grad = x[2], ti.Vector([0.0, 0.0, 1.0])
     else:
-        phi, grad = F.height[b] - x[2], ti.Vector([0.0, 0.0, -1.0])
+        phi, grad = F.model.height[b] - x[2], ti.Vector([0.0, 0.0, -1.0])
     return phi, grad

@@ -113,7 +113,7 @@ def run_chunk(chunk_id: int, jobs: list[Job], keep_streams: bool) -> list[PointR
             done = sum(min(runner.time(b), s.steps * s.dt) for b, s in enumerate(specs))
             _progress.put((chunk_id, done))
     wall = time.perf_counter() - t0
-    work = np.array([int(runner.engine.F.step[b]) * s.n for b, s in enumerate(specs)], dtype=float)
+    work = np.array([int(runner.engine.F.state.step[b]) * s.n for b, s in enumerate(specs)], dtype=float)
     share = work / work.sum() if work.sum() > 0 else np.full(len(jobs), 1.0 / len(jobs))
     results = []
     for b, (job, spec, mem, (summary, out)) in enumerate(zip(jobs, specs, mems, started)):

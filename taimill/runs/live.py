@@ -220,13 +220,13 @@ class LiveMill:
         while self._waiting:  # let a waiting setter in first (CPython locks are not fair)
             time.sleep(0.0005)
         with self._lock:
-            room = (self.F.frame_capacity - 2 - int(self.F.n_frames[0])) * self.spec.frame_every
+            room = (self.F.frame_capacity - 2 - int(self.F.out.n_frames[0])) * self.spec.frame_every
             n = max(1, min(max_steps, room, int(self.chunk_seconds / self._step_cost)))
-            before = int(self.F.step[0])
+            before = int(self.F.state.step[0])
             t0 = time.perf_counter()
             self.runner.engine.advance(n)
             wall = time.perf_counter() - t0
-            taken = int(self.F.step[0]) - before
+            taken = int(self.F.state.step[0]) - before
             if taken < n:
                 self._drain()
         if taken:

@@ -30,7 +30,7 @@ def start_point(preset, spec, sink) -> tuple[SummarySink, FanOut]:
 def point_result(preset, spec, summary, runner, b, wall, status) -> dict:
     """Run summary (docs/outputs.md) of mill b of `runner`; wall in s."""
     result = summary.result(runner.time(b), wall)
-    result.update(dt=spec.dt, steps=int(runner.engine.F.step[b]), status=status,
+    result.update(dt=spec.dt, steps=int(runner.engine.F.state.step[b]), status=status,
                   ratio=preset.drive.ratio, plate_rpm=preset.drive.plate_rpm)
     return with_units(result)
 

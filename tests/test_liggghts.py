@@ -18,7 +18,8 @@ import pytest
 from taimill.analysis.compare import compare
 from taimill.analysis.rungeometry import RunGeometry
 from taimill.bridge import dumps
-from taimill.bridge.liggghts import contact_mapping, export_case
+from taimill.bridge.contact_map import contact_mapping
+from taimill.bridge.liggghts import export_case
 from taimill.bridge.mesh import TOLERANCE, jar_mesh, read_stl
 from taimill.errors import ConfigError
 from taimill.model.jars import jar_names, load_jar

@@ -46,7 +46,8 @@ def _check_out(path: str, overwrite: bool, what: str, ours, inputs) -> None:
 
 
 def cmd_export(a) -> int:
-    from taimill.bridge.liggghts import contact_mapping, export_case, is_case
+    from taimill.bridge.contact_map import contact_mapping
+    from taimill.bridge.liggghts import export_case, is_case
     from taimill.model.files import reads
     from taimill.model.preset import load_preset
     from taimill.store.output import Output

@@ -546,6 +546,10 @@ JARS = {
     "corners without fillet": (_edit(GOOD_JAR, "fillet_mm = 8", "fillet_mm = 0"), ["fillet_mm", "fillet"]),
     "fillet too large": (_edit(GOOD_JAR, "fillet_mm = 8", "fillet_mm = 30"), ["profile", "cannot build"]),
     "wall material unknown": (_edit(GOOD_JAR, 'wall_material = "aisi-304"', 'wall_material = "oak"'), ["material", "oak"]),
+    # a 20-gon: 20 cuts and 20 fillets, more boundary pieces than the engine holds (geometry.MAX_PIECES)
+    "more pieces than the engine holds": (_edit(GOOD_JAR, "fillet_mm = 8", "fillet_mm = 2").split("[[profile]]\ntype = \"cut\"")[0]
+                                          + "".join(f'[[profile]]\ntype = "cut"\ndistance_mm = 30\nangle_deg = {18 * i}\n\n' for i in range(20)),
+                                          ["profile", "40 boundary pieces", "[1, 32]"]),
 }
 # name -> (pair file text, words); each is given to `run --pair` and to `calibrate drop --pair`
 PAIRS = {

@@ -143,6 +143,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
         raise ConfigError(source, "analysis_start", analysis_start, f"must be below duration = {duration:g} s")
     ramp_time = t.get("ramp_time", 1.0, **(RANGES["ramp_time"].bounds | {"hi": duration}))
     drive = Drive.from_rpm(plate_rpm, **{jar_key: jar_speed}, ramp_time=ramp_time)
+    rules.jar_speed_fits(t.where(jar_key), jar_key, jar_speed, drive)
     gravity = t.get("gravity", GRAVITY, lo=0, hi=1000)
     seed = t.get("seed", 0, kind=int, lo=0, hi=2**63 - 1)
 

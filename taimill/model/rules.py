@@ -11,6 +11,7 @@ import math
 
 from taimill.errors import ConfigError
 from taimill.model import laws as laws_np
+from taimill.model.ranges import RANGES
 
 MAX_STEPS = 1e10  #: time steps of one run; more would take years of wall time
 
@@ -25,6 +26,23 @@ def one_jar_speed(source, ratio, jar_rpm, *, options: bool = False):
     if options:
         raise ConfigError(source, "--jar-rpm", jar_rpm, f"give either --ratio ({ratio!r}) or --jar-rpm, not both")
     raise ConfigError(source, "jar_rpm", jar_rpm, "give either ratio or jar_rpm, not both")
+
+
+def jar_speed_fits(source, key: str, value, drive):
+    """One limit on the jar's speed however it is given: ω = w − Ω (relative to the
+    plate) within RANGES["jar_rpm"], also when the jar's speed came as K = `ratio`
+    (ω = (K − 1)·Ω), so `--plate-rpm 1000 --ratio 10` (ω = 9000 rpm) is refused like
+    `--jar-rpm 9000`. key, value: how the speed was given; drive: the resulting `Drive`."""
+    r = RANGES["jar_rpm"]
+    if r.lo <= drive.jar_rpm <= r.hi:
+        return
+    if key != "ratio" or drive.plate_rpm == 0:
+        raise ConfigError(source, key, value, f"allowed range [{r.lo:g}, {r.hi:g}] {r.unit}")
+    k, p = RANGES["ratio"], drive.plate_rpm
+    a, b = sorted((1 + r.lo / p, 1 + r.hi / p))
+    raise ConfigError(source, key, value, f"allowed range [{max(a, k.lo):.4g}, {min(b, k.hi):.4g}] at plate_rpm = {p:g}: "
+                      f"the jar would turn at {drive.jar_rpm:.6g} rpm relative to the plate, "
+                      f"at most [{r.lo:g}, {r.hi:g}] {r.unit} however its speed is given")
 
 
 # ------------------------------------------------------------------ friction

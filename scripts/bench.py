@@ -814,11 +814,12 @@ def dense_case(directory: Path, n: int, drum: bool) -> Path:
                                    f'[[profile]]\ntype = "circle"\nradius_mm = {1e3 * R!r}\n')
     np.savez(case / "start.npz", positions=x)
     drive = f"plate_rpm = 1e-6\njar_rpm = {DRUM_RPM}\nramp_time = 0.001\n" if drum else "plate_rpm = 1e-6\nratio = 1\n"
+    duration = (2 * DENSE_STEPS[n] + DENSE_SETTLE.get(n, 0)) * 1e-6 + 2e-6
     (case / "bed.toml").write_text(
         'jar = "jar.toml"\npair = "steel-steel"\nlaw = "hertz-mindlin"\n' + drive
-        + f'duration = {(2 * DENSE_STEPS[n] + DENSE_SETTLE.get(n, 0)) * 1e-6 + 2e-6!r}\ndt = 1e-6\nseed = 1\ninitial_positions = "start.npz"\n'
+        + f'duration = {duration!r}\ndt = 1e-6\nseed = 1\ninitial_positions = "start.npz"\n'
         f'\n[friction]\nmu_s = 0.8\nmu_d = 0.8\n\n[balls]\ncount = {n}\nmaterial = "steel-c1020"\n'
-        f'radius_mm = {DENSE_RADIUS_MM}\n\n[outputs]\ntrajectory_rate = 100\n')
+        f'radius_mm = {DENSE_RADIUS_MM}\n\n[outputs]\ntrajectory_rate = {1 / duration!r}\n')  # one frame interval: frames at both ends
     return case / "bed.toml"
 
 
@@ -926,11 +927,11 @@ def work_cli(task: dict) -> dict:
     positions, summary and store, Taichi's fields, kernels, the first neighbour lists."""
     import resource
 
-    preset = Path(task["preset"])  # frames every 10 steps: the run is then 11 steps, not a frame interval
+    preset = Path(task["preset"])  # frames every 10 steps of 1 µs: a run of one frame interval is 11 steps
     cli = preset.with_name("cli.toml")
-    cli.write_text(preset.read_text().replace("trajectory_rate = 100", "trajectory_rate = 100000"))
+    cli.write_text(preset.read_text().split("[outputs]")[0] + "[outputs]\ntrajectory_rate = 100000\n")
     t0, spawned = time.perf_counter(), time.time()
-    proc = subprocess.run([sys.executable, "-c", CLI_LAUNCHER, "run", str(cli), "--duration", "2e-6", "--out",
+    proc = subprocess.run([sys.executable, "-c", CLI_LAUNCHER, "run", str(cli), "--duration", "1e-5", "--out",
                            task["out"], "--json"], capture_output=True, text=True, timeout=task["timeout"], cwd=ROOT)
     wall = time.perf_counter() - t0
     if proc.returncode:

@@ -193,6 +193,10 @@ VALUES = [
     ("run --plate-rpm -0", RUN + ["--plate-rpm", "-0"], ["plate_rpm", "allowed range"]),
     ("run --plate-rpm 5000", RUN + ["--plate-rpm", "5000"], ["plate_rpm", "[-1000, 1000]"]),
     ("run --plate-rpm -5000", RUN + ["--plate-rpm", "-5000"], ["plate_rpm", "[-1000, 1000]"]),
+    ("run --plate-rpm 1000 --ratio 10: jar at 9000 rpm", RUN + ["--plate-rpm", "1000", "--ratio", "10"],
+     ["ratio", "10", "allowed range [-2, 4]", "9000 rpm", "[-3000, 3000]"]),
+    ("run --plate-rpm -1000 --ratio -10: jar at 11000 rpm", RUN + ["--plate-rpm", "-1000", "--ratio", "-10"],
+     ["ratio", "-10", "allowed range [-2, 4]", "11000 rpm"]),
     ("run --ratio with --jar-rpm", RUN + ["--ratio", "-2", "--jar-rpm", "100"], ["--jar-rpm", "--ratio", "not both"]),
     ("run --jar-rpm with --ratio", RUN + ["--jar-rpm", "-700", "--ratio", "-2.6"], ["--jar-rpm", "not both"]),
     ("run --balls 0", RUN + ["--balls", "0"], ["balls.count", "[1,"]),
@@ -204,6 +208,12 @@ VALUES = [
     ("run --duration 0", RUN + ["--duration", "0"], ["duration", "(0,"]),
     ("run --duration negative", RUN + ["--duration", "-1"], ["duration", "-1"]),
     ("run --duration 1e6", RUN + ["--duration", "1e6"], ["duration", "36000"]),
+    # one rule for time (rules.frames_fit, rules.auto_steps): a run shorter than one frame interval was
+    # stretched to one (0.01 s); an automatic step leading to more than 1e10 steps started without a word
+    ("run --duration 1e-12", RUN + ["--duration", "1e-12"], ["duration", "1e-12", "allowed range [0.01, 36000] s", "frame"]),
+    ("run --duration below one frame", RUN + ["--duration", "0.004"], ["duration", "0.004", "[0.01, 36000]", "100 Hz"]),
+    ("run --duration 36000: auto dt over 1e10 steps", RUN + ["--duration", "36000"],
+     ["duration", "36000", "allowed range (0,", "automatic dt", "at most 1e+10"]),
     ("run --analysis-start negative", RUN + ["--analysis-start", "-1"], ["analysis_start", "-1"]),
     ("run --analysis-start after the end", RUN + ["--analysis-start", "1e5"], ["analysis_start", "allowed range"]),
     ("run --dt text", RUN + ["--dt", "fast"], ["dt", "fast", "'auto'"]),
@@ -505,6 +515,13 @@ PRESETS = {
     "friction_ball_wall misspelled": (GOOD_PRESET + "[friction_ball_wall]\nmu_rr = 0.1\n", ["friction_ball_wall.mu_rr", "did you mean 'mu_r'"]),
     "friction_ball_wall not a table": (_top(GOOD_PRESET, "friction_ball_wall = 0.5"), ["friction_ball_wall", "table"]),
     "outputs rate 0": (GOOD_PRESET + "[outputs]\ntrajectory_rate = 0\n", ["outputs.trajectory_rate", "(0,"]),
+    "outputs rate 1e-9: a hang": (GOOD_PRESET + "[outputs]\ntrajectory_rate = 1e-9\n",
+                                  ["outputs.trajectory_rate", "1e-09", "allowed range [1, ", "Hz", "duration = 1 s"]),
+    "outputs rate 1 for a 0.3 s run": (_edit(GOOD_PRESET, "duration = 1.0", "duration = 0.3", "analysis_start = 0.5", "analysis_start = 0.1")
+                                       + "[outputs]\ntrajectory_rate = 1\n", ["outputs.trajectory_rate", "1", "[3.333, ", "duration = 0.3 s"]),
+    "outputs rate too high": (GOOD_PRESET + "[outputs]\ntrajectory_rate = 2e5\n", ["outputs.trajectory_rate", "200000", "allowed range"]),
+    "duration 36000: auto dt over 1e10 steps": (_edit(GOOD_PRESET, "duration = 1.0", "duration = 36000"),
+                                                ["duration", "36000", "automatic dt", "at most 1e+10"]),
     "outputs misspelled": (GOOD_PRESET + "[outputs]\ntrajectory_rat = 100\n", ["outputs.trajectory_rat", "did you mean 'trajectory_rate'"]),
     "initial_positions empty name": (_top(GOOD_PRESET, 'initial_positions = ""'), ["initial_positions", "empty"]),
     "initial_positions overlapping": (_top(GOOD_PRESET, 'initial_positions = "../overlap.csv"'), ["initial_positions", "overlap"]),
@@ -546,6 +563,10 @@ JARS = {
     "corners without fillet": (_edit(GOOD_JAR, "fillet_mm = 8", "fillet_mm = 0"), ["fillet_mm", "fillet"]),
     "fillet too large": (_edit(GOOD_JAR, "fillet_mm = 8", "fillet_mm = 30"), ["profile", "cannot build"]),
     "wall material unknown": (_edit(GOOD_JAR, 'wall_material = "aisi-304"', 'wall_material = "oak"'), ["material", "oak"]),
+    # a 20-gon: 20 cuts and 20 fillets, more boundary pieces than the engine holds (geometry.MAX_PIECES)
+    "more pieces than the engine holds": (_edit(GOOD_JAR, "fillet_mm = 8", "fillet_mm = 2").split("[[profile]]\ntype = \"cut\"")[0]
+                                          + "".join(f'[[profile]]\ntype = "cut"\ndistance_mm = 30\nangle_deg = {18 * i}\n\n' for i in range(20)),
+                                          ["profile", "40 boundary pieces", "[1, 32]"]),
 }
 # name -> (pair file text, words); each is given to `run --pair` and to `calibrate drop --pair`
 PAIRS = {
@@ -907,3 +928,33 @@ def test_an_unreadable_file_is_one_line(tmp_path, monkeypatch):
     monkeypatch.setattr(Path, "read_bytes", denied)
     with pytest.raises(ConfigError, match="locked.toml': cannot read: permission denied"):
         read_toml(p, "command line", "preset")
+
+
+def test_a_non_finite_automatic_time_step_is_refused_by_the_loader(tmp_path, monkeypatch):
+    # a contact law whose impacts never end gives no automatic step (NaN): the loader
+    # refuses it in one line instead of the engine running with dt = NaN
+    import math
+
+    from taimill.errors import ConfigError
+    from taimill.model import rules
+    from taimill.model.preset import load_preset
+
+    monkeypatch.setattr(rules, "_auto_dt", lambda *a: math.nan)
+    with pytest.raises(ConfigError) as e:
+        load_preset(PRESET, {"law": "hunt-crossley"})
+    assert str(e.value).count("\n") == 0 and "dt = 'auto'" in str(e.value) and "finite" in str(e.value)
+
+
+def test_a_long_run_says_how_long_it_takes_before_it_starts(tmp_path):
+    # over cli.run's LONG_STEPS (1e8) steps, `run` prints its step count and a range of wall
+    # times on stderr before anything starts (the process is stopped once it said so)
+    proc = subprocess.Popen([sys.executable, "-m", "taimill.cli", "run", PRESET, "--duration", "3000", "--json"],
+                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    try:
+        line = proc.stderr.readline()
+    finally:
+        proc.kill()
+        proc.communicate()
+    assert line.startswith("taimill: note: ") and "2.31e+09 steps" in line and "duration = 3000 s" in line, line
+    assert " min to " in line or " h" in line, line

@@ -147,7 +147,7 @@ def test_friction_per_contact_kind_is_exported_per_type_pair(tmp_path):
 
 
 def test_rolling_resistance_is_cdt_for_ball_ball_and_refused_for_the_turning_wall(tmp_path):
-    base = {"law": "hertz-mindlin", "friction.mu_s": 0.8, "duration": 0.005, "ramp_time": 0.002}
+    base = {"law": "hertz-mindlin", "friction.mu_s": 0.8, "duration": 0.005, "outputs.trajectory_rate": 1000, "ramp_time": 0.002}
     p = load_preset("presets/p4-cy-steel.toml", {**base, "friction_ball_ball.mu_r": 0.05})
     m = contact_mapping(p)
     assert m.rolling == {"ball_ball": 0.05, "ball_wall": 0.0} and any("rolling_friction cdt" in w for w in m.warnings)
@@ -166,7 +166,7 @@ def test_rolling_resistance_is_cdt_for_ball_ball_and_refused_for_the_turning_wal
 
 
 SAME_MODELS = {"law": "hertz-mindlin", "friction.tangential": "history", "friction.rolling": "epsd2",
-               "friction.mu_r": 0.05, "duration": 0.005, "ramp_time": 0.002}
+               "friction.mu_r": 0.05, "duration": 0.005, "outputs.trajectory_rate": 1000, "ramp_time": 0.002}
 SAME_MODELS_DECK = "model hertz tangential history rolling_friction epsd2"
 SAME_MODELS_SETTINGS = "limitForce on tangential_damping off"
 
@@ -209,7 +209,7 @@ def test_history_and_epsd2_are_exported_exactly(tmp_path):
 def test_each_contact_kind_is_written_with_its_own_sub_models(tmp_path):
     # pair_style holds the ball-ball models and the wall fix its own, so mixed sub-models
     # map kind by kind (LIGGGHTS 3.8 accepts different models in the two commands)
-    base = {"law": "hertz-mindlin", "friction.mu_s": 0.8, "duration": 0.005, "ramp_time": 0.002}
+    base = {"law": "hertz-mindlin", "friction.mu_s": 0.8, "duration": 0.005, "outputs.trajectory_rate": 1000, "ramp_time": 0.002}
     p = load_preset("presets/p4-cy-steel.toml", {**base, "friction_ball_ball.tangential": "history",
                                                   "friction_ball_ball.mu_r": 0.05,
                                                   "friction_ball_wall.rolling": "epsd2",

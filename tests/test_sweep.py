@@ -79,7 +79,7 @@ def test_a_range_too_long_to_count_is_refused_after_a_taichi_run_too():
     from taimill.runs.simulation import run
     from taimill.store.sinks import NullSink
 
-    run(load_preset(ROOT / "presets" / "p4-cy-steel.toml", {"duration": 0.002, "analysis_start": 0.0}), NullSink(), duration=0.002)
+    run(load_preset(ROOT / "presets" / "p4-cy-steel.toml", {"duration": 0.002, "analysis_start": 0.0, "outputs.trajectory_rate": 1000}), NullSink(), duration=0.002)
     with pytest.raises(ConfigError, match="at most 10000"):
         parse_values("0:1e308:1e-308", "--ratio")
 

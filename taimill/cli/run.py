@@ -31,6 +31,9 @@ def cmd_run(a) -> int:
             preset = _with_status(f"reading {a.preset}…", load_preset, a.preset, overrides(a))
         else:
             preset = load_preset(a.preset, overrides(a))
+    note = long_run_note(preset)
+    if note:
+        print(f"taimill: note: {note}", file=sys.stderr)
     if a.out:  # its folder must exist and be writable (an existing store: Output refuses it without --overwrite)
         from taimill.model.files import check_output
 
@@ -79,6 +82,31 @@ def cmd_run(a) -> int:
         if a.rrd:
             print(f"recorded in {a.rrd} (open it with `taimill view {a.rrd}`)")
     return 0
+
+
+LONG_STEPS = 1e8  #: time steps from which `run` says how long it will take before it starts
+# CPU time per step ≈ 0.1 µs + 25 ns a flying ball, up to ≈ 130 ns a ball in a bed rolling
+# on the wall (docs/performance.md, the preset table)
+STEP_US, BALL_US = 0.1, (0.025, 0.13)
+
+
+def long_run_note(preset) -> str | None:
+    """For a run of more than LONG_STEPS steps, a line that says how many and roughly how
+    long they take (the range of docs/performance.md's CPU cost per step); else None."""
+    steps = preset.duration / preset.dt
+    if steps <= LONG_STEPS:
+        return None
+    lo, hi = (steps * (STEP_US + b * preset.balls.count) * 1e-6 for b in BALL_US)
+    return (f"{steps:.3g} steps of dt = {preset.dt:.3g} s for duration = {preset.duration:g} s; "
+            f"at {lo / steps * 1e6:.2g}-{hi / steps * 1e6:.2g} µs of CPU a step for {preset.balls.count} balls "
+            f"this takes about {_span(lo)} to {_span(hi)}")
+
+
+def _span(seconds: float) -> str:
+    for unit, size in (("days", 86400), ("h", 3600), ("min", 60)):
+        if seconds >= size:
+            return f"{seconds / size:.2g} {unit}"
+    return f"{seconds:.2g} s"
 
 
 def _bar(console=None):

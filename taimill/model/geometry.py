@@ -31,6 +31,7 @@ import numpy as np
 
 LINE, ARC = 0, 1
 PIECE_COLUMNS = 12
+MAX_PIECES = 32  #: boundary pieces of a jar profile the engine holds (T: 12); the jar loader refuses more
 RAYS = 7200
 
 

@@ -112,6 +112,10 @@ def load_jar(name: str, source="preset", base: Path | None = None) -> Jar:
         raise ConfigError(path, "profile", [k for k, _ in prims], f"cannot build the cross-section: {err}") from None
     if len(jar.profile.pieces) > 1 and fillet <= 0:
         raise ConfigError(path, "fillet_mm", fillet * 1e3, "a profile with corners needs a fillet radius > 0")
+    n = len(jar.profile.pieces)
+    if n > geometry.MAX_PIECES:
+        raise ConfigError(path, "profile", f"{len(prims)} primitives", f"make {n} boundary pieces (with the fillets); "
+                          f"allowed range [1, {geometry.MAX_PIECES}] pieces, what the engine holds")
     return jar
 
 

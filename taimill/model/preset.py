@@ -143,6 +143,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
         raise ConfigError(source, "analysis_start", analysis_start, f"must be below duration = {duration:g} s")
     ramp_time = t.get("ramp_time", 1.0, **(RANGES["ramp_time"].bounds | {"hi": duration}))
     drive = Drive.from_rpm(plate_rpm, **{jar_key: jar_speed}, ramp_time=ramp_time)
+    rules.jar_speed_fits(t.where(jar_key), jar_key, jar_speed, drive)
     gravity = t.get("gravity", GRAVITY, lo=0, hi=1000)
     seed = t.get("seed", 0, kind=int, lo=0, hi=2**63 - 1)
 
@@ -150,12 +151,17 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     dt_auto = rules.auto_dt(ball_ball, ball_wall, (friction, wall_friction or friction), balls, v_max)
     t.used.add("dt")
     dt, is_auto = rules.time_step(t.where("dt"), t.data.get("dt", "auto"), dt_auto, v_max, duration)
+    if is_auto:
+        rules.auto_steps(t.where("dt"), t.where("duration"), dt, duration)
 
     out = t.table("outputs", required=False, known=OUTPUTS_KEYS)
-    rate = 100.0
+    rate, rate_source = 100.0, source
     if out is not None:
-        rate = out.get("trajectory_rate", 100.0, lo=0, lo_open=True, hi=min(1e5, 0.5 / dt))
+        rate = out.get("trajectory_rate", 100.0, lo=0, lo_open=True)
+        rate_source = out.where("trajectory_rate")
         out.done()
+    rules.frames_fit(rate_source, t.where("duration"), rate, dt, duration,
+                     blame_duration="duration" in overridden and "outputs.trajectory_rate" not in overridden)
     init = None
     if t.has("initial_positions"):
         init = load_positions(t.get("initial_positions", kind=str), path.parent, balls, jar, source)

@@ -11,8 +11,11 @@ import math
 
 from taimill.errors import ConfigError
 from taimill.model import laws as laws_np
+from taimill.model.ranges import RANGES
 
 MAX_STEPS = 1e10  #: time steps of one run; more would take years of wall time
+MAX_FRAMES = 1e7  #: trajectory frames of one run (the thesis' 24 s at 100 Hz: 2400)
+MAX_RATE = 1e5  #: Hz, trajectory frames per simulated second
 
 
 # ------------------------------------------------------------------ drive
@@ -25,6 +28,23 @@ def one_jar_speed(source, ratio, jar_rpm, *, options: bool = False):
     if options:
         raise ConfigError(source, "--jar-rpm", jar_rpm, f"give either --ratio ({ratio!r}) or --jar-rpm, not both")
     raise ConfigError(source, "jar_rpm", jar_rpm, "give either ratio or jar_rpm, not both")
+
+
+def jar_speed_fits(source, key: str, value, drive):
+    """One limit on the jar's speed however it is given: ω = w − Ω (relative to the
+    plate) within RANGES["jar_rpm"], also when the jar's speed came as K = `ratio`
+    (ω = (K − 1)·Ω), so `--plate-rpm 1000 --ratio 10` (ω = 9000 rpm) is refused like
+    `--jar-rpm 9000`. key, value: how the speed was given; drive: the resulting `Drive`."""
+    r = RANGES["jar_rpm"]
+    if r.lo <= drive.jar_rpm <= r.hi:
+        return
+    if key != "ratio" or drive.plate_rpm == 0:
+        raise ConfigError(source, key, value, f"allowed range [{r.lo:g}, {r.hi:g}] {r.unit}")
+    k, p = RANGES["ratio"], drive.plate_rpm
+    a, b = sorted((1 + r.lo / p, 1 + r.hi / p))
+    raise ConfigError(source, key, value, f"allowed range [{max(a, k.lo):.4g}, {min(b, k.hi):.4g}] at plate_rpm = {p:g}: "
+                      f"the jar would turn at {drive.jar_rpm:.6g} rpm relative to the plate, "
+                      f"at most [{r.lo:g}, {r.hi:g}] {r.unit} however its speed is given")
 
 
 # ------------------------------------------------------------------ friction
@@ -92,6 +112,41 @@ def time_step(source, given, dt_auto: float, v_max: float, duration: float) -> t
                           f"{duration / dt:.3g} steps for duration = {duration:g} s, at most {MAX_STEPS:.0e} "
                           "(smaller than the automatic step only while it runs in reasonable time)")
     return dt, False
+
+
+def auto_steps(source, duration_source, dt: float, duration: float):
+    """The automatic step `dt` (s) must be a finite positive number (a law whose impacts
+    never end gives none) and leave at most MAX_STEPS steps in `duration` (s), like an
+    explicit one."""
+    if not (math.isfinite(dt) and dt > 0):
+        raise ConfigError(source, "dt", "auto", f"the contact laws give no finite automatic time step ({dt!r} s); "
+                          "give an explicit dt in s or another law or pair")
+    if duration / dt > MAX_STEPS:
+        raise ConfigError(duration_source, "duration", duration, f"allowed range (0, {MAX_STEPS * dt:.3g}] s: "
+                          f"{duration / dt:.3g} steps of the automatic dt = {dt:.3g} s, at most {MAX_STEPS:.0e}")
+
+
+def frame_every(rate: float, dt: float) -> int:
+    """Time steps between trajectory frames at `rate` (Hz) and time step dt (s)."""
+    return max(1, int(round(1.0 / (rate * dt))))
+
+
+def frames_fit(rate_source, duration_source, rate: float, dt: float, duration: float, blame_duration: bool):
+    """The trajectory rate (Hz) and the duration (s) together: at least one frame in the
+    run (a run lasts whole frame intervals: a shorter one would be stretched to one) and at
+    most MAX_FRAMES; the rate at most MAX_RATE and two steps of dt (s) per frame.
+    blame_duration: the duration was given last (the command line), so it is the value named."""
+    hi = min(MAX_RATE, 0.5 / dt, MAX_FRAMES / duration)
+    interval = frame_every(rate, dt) * dt
+    short = duration < interval * (1 - 1e-9)  # a run lasts whole frame intervals (spec.from_preset)
+    if blame_duration and short:
+        raise ConfigError(duration_source, "duration", duration, f"allowed range [{interval:.3g}, 36000] s: "
+                          f"at least one frame interval at trajectory_rate = {rate:g} Hz")
+    # the lowest rate whose frame interval, a whole number of steps, still fits in the run
+    lo = 1.0 / min(duration, (math.floor(duration / dt + 1e-9) + 0.499) * dt)
+    if not lo * (1 - 1e-9) <= rate <= hi or short:
+        raise ConfigError(rate_source, "outputs.trajectory_rate", rate, f"allowed range [{lo:.4g}, {hi:.4g}] Hz: at least one "
+                          f"frame in duration = {duration:g} s, at most {MAX_FRAMES:.0e} frames and {min(MAX_RATE, 0.5 / dt):.4g} Hz")
 
 
 def running_dt(preset, plate_omega: float, jar_spin: float, fixed: float | None = None) -> float:

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from taimill.model import rules
 from taimill.model.contact.model import ContactModel
 from taimill.model.contact.registry import contact_model
 from taimill.model.frame import Ramp
@@ -75,7 +76,7 @@ def from_preset(p: Preset, duration: float | None = None) -> MillSpec:
     x0 = p.initial_positions
     if x0 is None:
         x0 = random_placement(n, p.balls.radius, p.jar.profile, p.jar.height, p.seed, p.source)
-    every = max(1, int(round(1.0 / (p.trajectory_rate * p.dt))))
+    every = rules.frame_every(p.trajectory_rate, p.dt)
     frames = max(1, int(round((duration if duration is not None else p.duration) / (every * p.dt))))
     plate, jar = p.drive.start_up()
     return MillSpec(

@@ -9,7 +9,7 @@ contact models stay on the Fields object itself. Shapes in brackets, SI units.
 import taichi as ti
 
 from taimill.model.contact.registry import contact_model, law_by_name
-from taimill.model.geometry import PIECE_COLUMNS
+from taimill.model.geometry import MAX_PIECES, PIECE_COLUMNS
 from taimill.schema import DERIVED_EVENT_COLUMNS, DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS, MECHANISM_COLUMNS
 
 # Contact slots per ball: 3 wall slots (side, floor, lid), then partner slots for the
@@ -74,7 +74,6 @@ def pool_rows(balls: int) -> int:
 # Status codes.
 OK, NONFINITE, ESCAPED, SLOTS_FULL, LIST_FULL, POOL_FULL = 0, 1, 2, 3, 4, 5
 
-MAX_PIECES = 32  # boundary pieces of a jar profile (T: 12)
 CONTACT_TYPES = 2  # 0 ball-ball, 1 ball-wall
 LAWS_DEFAULT = "adams-impact"
 

@@ -271,6 +271,8 @@ class LiveMill:
         rules.one_jar_speed(SOURCE, ratio, jar_rpm)
         given = {"plate_rpm": plate_rpm, "ratio": ratio, "jar_rpm": jar_rpm, "ramp_time": ramp_time}
         new = self.target.retarget(**{k: check(k, v) for k, v in given.items() if v is not None})
+        key = "jar_rpm" if jar_rpm is not None else "ratio"
+        rules.jar_speed_fits(SOURCE, key, jar_rpm if jar_rpm is not None else new.ratio, new)
         om, w, T = new.plate_omega, new.jar_spin, new.ramp_time
         dt = rules.running_dt(self.preset, self._peak(self.plate, om), self._peak(self.jar, w), self.dt_fixed)
         with self._locked():

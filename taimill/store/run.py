@@ -18,7 +18,7 @@ readers slice to it and a restarted writer trims back to it (`trim_to_valid`); a
 writer that finishes leaves every array `n_valid` rows long. Rows reach the arrays in
 whole chunks, encoded and stored by the sink (`_ChunkWriter`). Between chunks, the
 sink commits whenever a ledger block brings the simulated time `commit_every` (0.2 s)
-past the last commit, i.e. after every 0.25 s launch of a run: the rows not yet in the
+past the last commit, i.e. after every launch of a run (1 s simulated, runner.LAUNCH_SECONDS): the rows not yet in the
 arrays since the last commit, of every table, go to ONE journal file (`TABLE/start`,
 `TABLE/COLUMN` in a NumPy .npz, written atomically); readers append the journal's rows
 after `n_valid`. A dense trajectory's launch ends where a chunk ends

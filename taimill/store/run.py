@@ -36,9 +36,11 @@ before stays readable.
 
 Reading checks what it reads (`RunStore.check`): attributes of the wrong type, a table or
 array missing from a store whose writer finished, chunks missing below `n_valid`, a chunk
-or journal file that does not decode, or tables that disagree with the summary raise
-`StoreError` naming the store and the part, instead of reading as fill values or as a
-complete run.
+or journal file that does not decode, a chunk that fails its CRC-32C (`CHECKSUM`), tables
+that disagree with the summary, or arrays that contradict the stored config (ball count,
+radii, frame count) raise `StoreError` naming the store and the part, instead of reading
+as fill values or as a complete run. A journal left in a store whose writer finished is
+named in a warning and not read.
 """
 
 from __future__ import annotations

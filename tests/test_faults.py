@@ -360,7 +360,7 @@ def _garbage_attr(path: Path, node: str, **attrs):
 DAMAGE = {
     "deleted chunk": (lambda p: (p / "events" / "un" / "c" / "0").unlink(), "events/un: chunk 0 missing"),
     "truncated chunk": (lambda p: (p / "trajectory" / "position" / "c" / "0" / "0" / "0").write_bytes(b"\x28\xb5"),
-                        "trajectory/position: chunk 0 unreadable"),
+                        "trajectory/position: chunk 0 fails its checksum"),  # a truncated chunk fails the CRC before Blosc
     "garbage zarr.json": (lambda p: (p / "energy" / "kinetic" / "zarr.json").write_text("{not json"),
                           "energy/kinetic: metadata unreadable"),
     "garbage root zarr.json": (lambda p: (p / "zarr.json").write_text("\x00garbage"), "zarr.json: not a taimill run store"),
@@ -419,7 +419,7 @@ def test_a_damaged_sweep_table_is_named(whole_sweep, tmp_path):
     shutil.copytree(whole_sweep[0], path)
     (path / "table" / "mean_se" / "c" / "0").write_bytes(b"junk")
     code, _, err = main("report", path, "--out", tmp_path / "fig")
-    assert code == 2 and "table/mean_se: chunk 0 unreadable" in one_line(err)
+    assert code == 2 and "table/mean_se: chunk 0 fails its checksum" in one_line(err)
     shutil.rmtree(path / "points" / "p00001")
     with pytest.raises(StoreError, match="points/p00001: missing"):
         open_sweep(path).point(1)

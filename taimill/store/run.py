@@ -36,9 +36,11 @@ before stays readable.
 
 Reading checks what it reads (`RunStore.check`): attributes of the wrong type, a table or
 array missing from a store whose writer finished, chunks missing below `n_valid`, a chunk
-or journal file that does not decode, or tables that disagree with the summary raise
-`StoreError` naming the store and the part, instead of reading as fill values or as a
-complete run.
+or journal file that does not decode, a chunk that fails its CRC-32C (`CHECKSUM`), tables
+that disagree with the summary, or arrays that contradict the stored config (ball count,
+radii, frame count) raise `StoreError` naming the store and the part, instead of reading
+as fill values or as a complete run. A journal left in a store whose writer finished is
+named in a warning and not read.
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ import io
 import json
 import math
 import os
+import sys
 import uuid
 import zipfile
 from contextlib import contextmanager
@@ -55,10 +58,11 @@ from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
+import google_crc32c  # zarr's own dependency (its Crc32cCodec): the writer appends the same checksum
 import numcodecs.blosc
 import numpy as np
 import zarr
-from zarr.codecs import BloscCodec, BytesCodec
+from zarr.codecs import BloscCodec, BytesCodec, Crc32cCodec
 from zarr.core.buffer import default_buffer_prototype
 from zarr.core.sync import sync
 from zarr.storage import LocalStore
@@ -103,6 +107,12 @@ FRAME_CHUNK_ROWS = (1024, 32768)
 # smaller than zarr's default Zstandard (trajectories: 1.4 vs 3.1 µs per frame of 12
 # balls, compression 1.31 vs 1.08).
 COMPRESSOR = BloscCodec(cname="lz4", clevel=5, shuffle="shuffle")
+# Last in every array's codec chain (schema 3 stores written since issue 36): a CRC-32C
+# of the compressed chunk, 4 bytes, checked by zarr on every read. Blosc decodes many
+# flipped bytes into other numbers without a word; a checksum turns them into an error
+# that `read_rows` names. Stores written before it carry no checksum and read as before.
+CHECKSUM = Crc32cCodec()
+CODECS = (COMPRESSOR, CHECKSUM)
 # Statuses whose writer called finish() after flushing everything: the tables hold
 # every row the summary counted.
 FLUSHED = ("complete", "interrupted", "unstable")
@@ -218,7 +228,7 @@ class _TableWriter:
             dimension_names=c.dims,
             attributes={"units": c.units, "description": c.description},
             config={"write_empty_chunks": True},
-            compressors=COMPRESSOR,
+            compressors=CODECS,
         )
 
     def add(self, block: dict) -> None:
@@ -318,14 +328,14 @@ class _TableWriter:
 
 class _ChunkWriter:
     """Stores whole chunks of the table arrays. Arrays whose codecs are this module's
-    (little-endian bytes, then `COMPRESSOR`) get their chunks encoded here, in one call
+    (little-endian bytes, then `COMPRESSOR`, then optionally `CHECKSUM`) get their chunks encoded here, in one call
     to Blosc each, and stored under their keys (`put_all`): the bytes zarr itself
     stores for that chunk (tests/test_store.py), without zarr's per-chunk cost (≈ 2.5 ms
     of Python per chunk in zarr 3.1, and fresh copies of every chunk). Other arrays
     go through zarr."""
 
     def __init__(self, encoders):
-        self.encoders = encoders  #: per array its Blosc encoder, or None: through zarr
+        self.encoders = encoders  #: per array (its Blosc encoder, checksum?), or None: through zarr
 
     @classmethod
     def for_arrays(cls, arrays: dict[str, zarr.Array]) -> "_ChunkWriter":
@@ -343,8 +353,12 @@ class _ChunkWriter:
                     arr.resize((lo + rows, *arr.shape[1:]))
                 arr[lo:lo + rows] = data[:rows]
                 continue
+            blosc, checksum = enc
             raw = data if data.dtype.byteorder != ">" else data.astype(data.dtype.newbyteorder("<"))
-            puts.append((arr.store, _chunk_key(arr, index), _encode_serial(enc, raw.reshape(-1).view(np.uint8))))
+            chunk = _encode_serial(blosc, raw.reshape(-1).view(np.uint8))
+            if checksum:  # what Crc32cCodec appends: the CRC-32C of the bytes before it, little-endian
+                chunk += np.uint32(google_crc32c.value(chunk)).astype("<u4").tobytes()
+            puts.append((arr.store, _chunk_key(arr, index), chunk))
         put_all(puts)
 
 
@@ -362,13 +376,17 @@ def _encode_serial(enc, data: np.ndarray) -> bytes:
 
 
 def _blosc_encoder(arr: zarr.Array):
-    """The numcodecs Blosc that zarr uses for the chunks of `arr` if its codecs are the
-    bytes codec (little-endian) and one BloscCodec; else None."""
+    """(the numcodecs Blosc that zarr uses for the chunks of `arr`, whether a CRC-32C
+    follows) if its codecs are the bytes codec (little-endian), one BloscCodec and
+    optionally Crc32cCodec; else None."""
     try:
-        codecs = arr.metadata.codecs
+        codecs = list(arr.metadata.codecs)
+        checksum = bool(codecs) and isinstance(codecs[-1], Crc32cCodec)
+        if checksum:
+            codecs.pop()
         ok = (len(codecs) == 2 and isinstance(codecs[0], BytesCodec) and isinstance(codecs[1], BloscCodec)
               and (codecs[0].endian is None or codecs[0].endian.value == "little"))
-        return codecs[1]._blosc_codec if ok else None
+        return (codecs[1]._blosc_codec, checksum) if ok else None
     except Exception:  # another zarr's metadata: let zarr write
         return None
 
@@ -462,7 +480,7 @@ class ZarrSink:
                 }
             )
         with self._writing("radii"):
-            self.group.create_array("radii", data=radii, overwrite=True, dimension_names=("ball",),
+            self.group.create_array("radii", data=radii, overwrite=True, dimension_names=("ball",), compressors=CODECS,
                                     attributes={"units": "m", "description": "ball radii"})
         frames = self.frame_chunk or frame_chunk_rows(config.get("trajectory_rate"))
         chunks = {"trajectory": frames, "events": self.event_chunk, "energy": frames}
@@ -663,6 +681,10 @@ def why(err: BaseException) -> str:
     return text if len(text) <= 160 else text[:157] + "..."
 
 
+def _is_number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
 def _short(value) -> str:
     text = repr(value)
     return text if len(text) <= 40 else text[:37] + "..."
@@ -690,6 +712,10 @@ def read_rows(arr: zarr.Array, n: int, where: str, part: str) -> np.ndarray:
             try:
                 arr[i * size:min(n, (i + 1) * size)]
             except Exception as err:
+                # zarr's Crc32cCodec raises ValueError("Stored and computed checksum do not match ...")
+                if "checksum" in str(err):
+                    raise StoreError(where, part, f"chunk {i} fails its checksum (its bytes changed after "
+                                                  "they were written)") from None
                 raise StoreError(where, part, f"chunk {i} unreadable ({why(err)})") from None
         raise
 
@@ -712,6 +738,7 @@ class RunStore:
         self.rows: dict[str, int] = {}  #: rows committed in the arrays and the journal
         self.columns: dict[str, dict[str, Column]] = {}
         self.journal_rows: dict[str, list[dict[str, np.ndarray]]] = {}
+        self.warnings: list[str] = []  #: what `check` found odd but not damage (also printed on stderr)
 
     def _bad(self, part: str, why: str):
         raise StoreError(self.where, part, why)
@@ -731,7 +758,8 @@ class RunStore:
         try:
             radii = self.radii
         except Exception as err:
-            self._bad(part, f"unreadable ({why(err)})")
+            self._bad(part, "chunk 0 fails its checksum (its bytes changed after they were written)"
+                      if "checksum" in str(err) else f"unreadable ({why(err)})")
         if radii.shape != (self.n_balls,) or not (np.isfinite(radii) & (radii > 0)).all():
             self._bad(part, f"{_short(radii.tolist())} is not {self.n_balls} positive radii (m)")
         window = self.analysis_window
@@ -743,11 +771,49 @@ class RunStore:
         for table, columns in layout(self.n_balls).items():
             self._check_table(table, columns, finished)
         self.rows = dict(self.n_valid)
-        self._fold_journal()
+        self._fold_journal(stale=str(self.status).startswith(FLUSHED) and self.summary is not None)
         if not finished and not self.attrs.get("energy_source"):
             self._cut_to_whole_frames()
         self._check_summary()
+        self._check_config()
         return self
+
+    def _check_config(self) -> None:
+        """The arrays against the stored config: the balls' count and radius, and the
+        frames that its duration and trajectory_rate give (as `model.spec` steps them:
+        one every round(1 / (rate dt)) steps, at both ends), within one frame. A killed
+        run has fewer (its status says so); only more frames than possible, or fewer in
+        a complete run, are damage. A live recording (live_start_time) lasts as long as
+        it was recorded, an import (energy_source) as its dumps: no frame count."""
+        config = self.config
+        if not isinstance(config, dict):
+            return
+        balls = config.get("balls")
+        if isinstance(balls, dict):
+            count, radius = balls.get("count"), balls.get("radius")
+            if _is_number(count) and count != self.n_balls:
+                self._bad("attrs.n_balls", f"{self.n_balls} balls, but the stored config has {count}")
+            if _is_number(radius) and radius > 0:
+                radii = self.radii
+                off = np.flatnonzero(~np.isclose(radii, radius, rtol=1e-9, atol=0.0))
+                if off.size:
+                    i = int(off[0])
+                    self._bad("radii" if "radii" in self.group else "attrs.radii",
+                              f"ball {i} has radius {radii[i]:g} m, but the stored config's balls are {radius:g} m"
+                              f"{f' ({off.size} balls differ)' if off.size > 1 else ''}")
+        if "live_start_time" in config or self.attrs.get("energy_source"):
+            return
+        rate, duration, dt = config.get("trajectory_rate"), config.get("duration"), config.get("dt")
+        if not all(_is_number(x) and math.isfinite(x) and x > 0 for x in (rate, duration, dt)):
+            return
+        every = max(1, round(1.0 / (rate * dt)))
+        frames = max(1, round(duration / (every * dt))) + 1
+        n = self.rows.get("trajectory", 0)
+        said = f"{duration:g} s at {rate:g} frames/s (dt {dt:g} s) give {frames}"
+        if n > frames + 1:
+            self._bad("trajectory", f"{n} committed frames, but the stored config's {said}")
+        if self.status == "complete" and n < frames - 1:
+            self._bad("trajectory", f"{n} committed frames in a complete run, but the stored config's {said}")
 
     def _cut_to_whole_frames(self) -> None:
         """A frame is committed once its trajectory row and its ledger row are: each
@@ -769,13 +835,23 @@ class RunStore:
                 left -= m
             self.journal_rows[table] = kept
 
-    def _fold_journal(self) -> None:
+    def _fold_journal(self, stale: bool = False) -> None:
         """Rows of the journal segments that continue each table after its n_valid
         (module doc); a segment past a gap (a writer's deleted segment seen by a
-        reader of a live store) and everything after it are left out."""
+        reader of a live store) and everything after it are left out. `stale`: the
+        writer flushed every row into the arrays and deleted its journal, so a segment
+        still there is a leftover (a copy over the store, a failed delete): not read,
+        and named in a warning line on stderr, as reading on silently would hide it."""
         prefix = f"{self.group.path}/{JOURNAL}/".lstrip("/")
         keys = sorted(k for k in _stored_keys(self.group.store, prefix) if k.endswith(".npz"))
         self.journal_rows = {table: [] for table in self.columns}
+        if stale and keys:
+            names = ", ".join(k[len(self.group.path):].lstrip("/") for k in keys[:3])
+            more = f" and {len(keys) - 3} more" if len(keys) > 3 else ""
+            self.warnings.append(f"{self.where}: {names}{more}: stale journal of a writer that finished "
+                                 f"({self.status}); its rows are not read")
+            print(f"taimill: warning: {self.warnings[-1]}", file=sys.stderr)
+            return
         for key in keys:
             part = key[len(self.group.path):].lstrip("/")
             try:

@@ -39,15 +39,20 @@ from pathlib import Path
 
 import numpy as np
 import zarr
+from zarr.codecs import ZstdCodec
 
 from taimill.errors import ConfigError, StoreError
 from taimill.store.output import Output
-from taimill.store.run import ZarrSink, location, open_run, plain, read_rows, why
+from taimill.store.run import CHECKSUM, ZarrSink, location, open_run, plain, read_rows, why
 
 SCHEMA_VERSION = 1
 VALUE_COLUMNS = ("jar", "balls", "pair", "plate_rpm", "ratio", "seed", "replica",
                  "plate_radius", "jar_radius", "ball_radius", "duration")
 TABLE_CHUNK = 4096
+# The table's arrays: zarr's default compressor (Zstandard), then the CRC-32C of the run
+# stores (store.run.CHECKSUM), so a changed byte is named on read; tables of sweeps
+# begun before it carry no checksum and read as before.
+TABLE_CODECS = (ZstdCodec(level=0, checksum=False), CHECKSUM)
 
 
 def point_key(overrides: dict) -> str:
@@ -119,7 +124,8 @@ class SweepStore:
                           | ({"content": plain(content)} if content is not None else {}))
         root.create_group("points")
         table = root.create_group("table", attributes={"description": "one row per planned point; rows with done = true are valid"})
-        table.create_array("done", shape=(0,), chunks=(TABLE_CHUNK,), dtype=bool, fill_value=False, dimension_names=("point",))
+        table.create_array("done", shape=(0,), chunks=(TABLE_CHUNK,), dtype=bool, fill_value=False, dimension_names=("point",),
+                           compressors=TABLE_CODECS)
         return cls(root)
 
     @property
@@ -192,7 +198,7 @@ class SweepStore:
             if name not in table:
                 dtype, fill = (str, "") if isinstance(value, str) else ("i8", -1) if isinstance(value, int) else ("f8", np.nan)
                 table.create_array(name, shape=(n,), chunks=(TABLE_CHUNK,), dtype=dtype, fill_value=fill,
-                                   dimension_names=("point",))
+                                   dimension_names=("point",), compressors=TABLE_CODECS)
             table[name][i] = value
         table["done"][i] = True
 

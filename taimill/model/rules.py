@@ -138,13 +138,15 @@ def frames_fit(rate_source, duration_source, rate: float, dt: float, duration: f
     blame_duration: the duration was given last (the command line), so it is the value named."""
     hi = min(MAX_RATE, 0.5 / dt, MAX_FRAMES / duration)
     interval = frame_every(rate, dt) * dt
-    short = duration < interval * (1 - 1e-9)  # a run lasts whole frame intervals (spec.from_preset)
+    # a run lasts whole frame intervals (spec.from_preset): one more than a time step
+    # longer than the run would stretch it (a 0.3 s run at 1 Hz would run 1 s); the
+    # rounding of the interval to whole steps stretches it by half a step at most
+    short = interval > duration + dt * (1 + 1e-9)
     if blame_duration and short:
-        raise ConfigError(duration_source, "duration", duration, f"allowed range [{interval:.3g}, 36000] s: "
+        raise ConfigError(duration_source, "duration", duration, f"allowed range [{interval - dt:.3g}, 36000] s: "
                           f"at least one frame interval at trajectory_rate = {rate:g} Hz")
-    # the lowest rate whose frame interval, a whole number of steps, still fits in the run
-    lo = 1.0 / min(duration, (math.floor(duration / dt + 1e-9) + 0.499) * dt)
-    if not lo * (1 - 1e-9) <= rate <= hi or short:
+    lo = 1.0 / (duration + 0.5 * dt)  # from this rate on the interval, whole steps, keeps within a step of the run
+    if short or rate > hi:
         raise ConfigError(rate_source, "outputs.trajectory_rate", rate, f"allowed range [{lo:.4g}, {hi:.4g}] Hz: at least one "
                           f"frame in duration = {duration:g} s, at most {MAX_FRAMES:.0e} frames and {min(MAX_RATE, 0.5 / dt):.4g} Hz")
 

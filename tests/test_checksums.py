@@ -6,8 +6,6 @@ CLI in a subprocess."""
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import shutil
 import subprocess
@@ -18,7 +16,7 @@ import numpy as np
 import pytest
 import zarr
 
-from taimill import cli
+from inprocess import main
 from taimill.errors import StoreError
 from taimill.store.run import COMPRESSOR, open_run, put_npz
 
@@ -34,13 +32,6 @@ def run_store(tmp_path_factory):
                          cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr
     return out
-
-
-def main(*args) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = cli.main(list(map(str, args)))
-    return code, out.getvalue(), err.getvalue()
 
 
 def copy(src: Path, tmp_path: Path) -> Path:

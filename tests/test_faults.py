@@ -9,8 +9,6 @@ Subprocesses pay Taichi's start-up (a few seconds each): the CI selection kills 
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import os
 import random
@@ -26,7 +24,7 @@ import numpy as np
 import pytest
 import zarr
 
-from taimill import cli
+from inprocess import main
 from taimill.analysis.run import analyse
 from taimill.errors import StoreError
 from taimill.store.output import OutputLock, lock_path
@@ -120,14 +118,6 @@ def kill_run(tmp_path: Path, seed: int) -> Path:
         proc.communicate()
     assert proc.returncode == -signal.SIGKILL
     return out
-
-
-def main(*args) -> tuple[int, str, str]:
-    """The CLI in this process (no Taichi for analyse, report, record): exit code, stdout, stderr."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = cli.main(list(map(str, args)))
-    return code, out.getvalue(), err.getvalue()
 
 
 @pytest.mark.parametrize("seed", range(3))

@@ -115,6 +115,12 @@ def add_overrides(p, live: bool = False):
     g.add_argument("--law", help=LAW_HELP)
 
 
+def print_warnings(preset) -> None:
+    """The preset's warnings (estimates, assumptions, implausible values), one line each on stderr."""
+    for w in preset.warnings:
+        print(f"taimill: warning: {w}", file=sys.stderr)
+
+
 def _fmt(value, scale):
     if scale is None or isinstance(value, str):
         return str(value)

@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from taimill.cli.common import add_overrides, overrides, plain, summary_table
+from taimill.cli.common import add_overrides, overrides, plain, print_warnings, summary_table
 
 
 def register(sub) -> None:
@@ -54,6 +54,7 @@ def cmd_export(a) -> int:
 
     with reads() as inputs:
         preset = load_preset(a.preset, overrides(a))
+    print_warnings(preset)
     mapping = contact_mapping(preset, strict=a.strict)  # a refusal leaves an existing --out case untouched
     _check_out(a.out, a.overwrite, "LIGGGHTS case", is_case, inputs)
     # built beside an existing case and swapped in when complete (store/output.py); a

@@ -23,6 +23,7 @@ def cmd_run(a) -> int:
     from taimill.errors import SimulationUnstable
     from taimill.model.files import reads
     from taimill.model.preset import load_preset
+    from taimill.cli.common import print_warnings
 
     show_bar = not a.json or sys.stderr.isatty()
     with reads() as inputs:  # the preset and every file it names: no output may replace them
@@ -31,6 +32,7 @@ def cmd_run(a) -> int:
             preset = _with_status(f"reading {a.preset}…", load_preset, a.preset, overrides(a))
         else:
             preset = load_preset(a.preset, overrides(a))
+    print_warnings(preset)
     note = long_run_note(preset)
     if note:
         print(f"taimill: note: {note}", file=sys.stderr)

@@ -30,6 +30,9 @@ def cmd_tui(a) -> int:
     out_dir = check_output(a.out_dir, "--out-dir", overwrite=None, folder=True)  # recordings get new names
     overrides = _overrides(a)
     preset = load_preset(a.preset, overrides)
+    from taimill.cli.common import print_warnings
+
+    print_warnings(preset)
     print("taimill: compiling the kernels …", file=sys.stderr)
     from taimill.runs.live import LiveMill
     from taimill.tui.app import MillApp

@@ -59,6 +59,9 @@ class Preset:
     gravity: float = GRAVITY  #: m/s²
     initial_positions: np.ndarray | None = field(default=None, compare=False, repr=False)
     wall_friction: Friction | None = None  #: of ball-wall contacts; None: `friction`
+    #: one line each, for the user before the run starts: numbers that are estimates or
+    #: assumptions, implausible but allowed values (the loader appends; cli prints them)
+    warnings: tuple[str, ...] = field(default=(), compare=False)
 
     @property
     def frictions(self) -> tuple[Friction, Friction]:
@@ -69,7 +72,7 @@ class Preset:
         """Resolved configuration as plain JSON-able data (for stores and summaries);
         the drive's speeds are top-level keys in every form (see Drive.as_dict)."""
         d = dataclasses.asdict(dataclasses.replace(self, initial_positions=None))
-        del d["drive"]
+        del d["drive"], d["warnings"]
         x = self.initial_positions
         if x is not None:  # inline for a few balls; the trajectory's first frame holds them all anyway
             d["initial_positions"] = x.tolist() if len(x) <= INLINE_POSITIONS else f"{len(x)} ball centres: the trajectory's first frame"
@@ -166,9 +169,10 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     if t.has("initial_positions"):
         init = load_positions(t.get("initial_positions", kind=str), path.parent, balls, jar, source)
     t.done()
+    warnings: list[str] = []
     return Preset(
         source, jar, balls, pair, friction, ball_ball, ball_wall, drive, plate_radius,
-        duration, analysis_start, dt, is_auto, seed, rate, gravity, init, wall_friction,
+        duration, analysis_start, dt, is_auto, seed, rate, gravity, init, wall_friction, tuple(warnings),
     )
 
 

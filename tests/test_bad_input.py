@@ -946,7 +946,7 @@ def test_a_non_finite_automatic_time_step_is_refused_by_the_loader(tmp_path, mon
 
 
 def test_a_long_run_says_how_long_it_takes_before_it_starts(tmp_path):
-    # over cli.run's LONG_STEPS (1e8) steps, `run` prints its step count and a range of wall
+    # over cli.run's LONG_SECONDS (2 min) of expected CPU time, `run` prints its step count and a range of wall
     # times on stderr before anything starts (the process is stopped once it said so)
     proc = subprocess.Popen([sys.executable, "-m", "taimill.cli", "run", PRESET, "--duration", "3000", "--json"],
                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,

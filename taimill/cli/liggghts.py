@@ -54,9 +54,9 @@ def cmd_export(a) -> int:
 
     with reads() as inputs:
         preset = load_preset(a.preset, overrides(a))
-    print_warnings(preset)
     mapping = contact_mapping(preset, strict=a.strict)  # a refusal leaves an existing --out case untouched
     _check_out(a.out, a.overwrite, "LIGGGHTS case", is_case, inputs)
+    print_warnings(preset)  # once every check passed: a refusal stays one line
     # built beside an existing case and swapped in when complete (store/output.py); a
     # half-written case is of no use, so none is kept
     with Output(a.out, overwrite=a.overwrite, what="case", kind="LIGGGHTS case",

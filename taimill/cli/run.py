@@ -32,10 +32,6 @@ def cmd_run(a) -> int:
             preset = _with_status(f"reading {a.preset}…", load_preset, a.preset, overrides(a))
         else:
             preset = load_preset(a.preset, overrides(a))
-    print_warnings(preset)
-    note = long_run_note(preset)
-    if note:
-        print(f"taimill: note: {note}", file=sys.stderr)
     if a.out:  # its folder must exist and be writable (an existing store: Output refuses it without --overwrite)
         from taimill.model.files import check_output
 
@@ -64,6 +60,10 @@ def cmd_run(a) -> int:
 
             sink = FanOut(sink, RerunSink(outputs.add(a.rrd, overwrite=a.overwrite, option="--rrd", what="recording",
                                                       ours=is_recording, inputs=inputs)))
+        print_warnings(preset)  # once every check passed: a refusal stays one line
+        note = long_run_note(preset)
+        if note:
+            print(f"taimill: note: {note}", file=sys.stderr)
         try:
             if show_bar:
                 summary = _run_with_bar(run, preset, sink)
@@ -86,19 +86,20 @@ def cmd_run(a) -> int:
     return 0
 
 
-LONG_STEPS = 1e8  #: time steps from which `run` says how long it will take before it starts
+LONG_SECONDS = 120.0  #: CPU seconds (the low estimate) from which `run` says how long it will take before it starts
 # CPU time per step ≈ 0.1 µs + 25 ns a flying ball, up to ≈ 130 ns a ball in a bed rolling
 # on the wall (docs/performance.md, the preset table)
 STEP_US, BALL_US = 0.1, (0.025, 0.13)
 
 
 def long_run_note(preset) -> str | None:
-    """For a run of more than LONG_STEPS steps, a line that says how many and roughly how
-    long they take (the range of docs/performance.md's CPU cost per step); else None."""
+    """For a run expected to take more than a few minutes (even at the low end of
+    docs/performance.md's CPU cost per step, more than LONG_SECONDS), a line that says
+    how many steps and roughly how long they take; else None."""
     steps = preset.duration / preset.dt
-    if steps <= LONG_STEPS:
-        return None
     lo, hi = (steps * (STEP_US + b * preset.balls.count) * 1e-6 for b in BALL_US)
+    if lo <= LONG_SECONDS:
+        return None
     return (f"{steps:.3g} steps of dt = {preset.dt:.3g} s for duration = {preset.duration:g} s; "
             f"at {lo / steps * 1e6:.2g}-{hi / steps * 1e6:.2g} µs of CPU a step for {preset.balls.count} balls "
             f"this takes about {_span(lo)} to {_span(hi)}")

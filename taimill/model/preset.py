@@ -20,7 +20,8 @@ from taimill.model.contact.registry import NAMES as LAW_NAMES
 from taimill.model.contact_sets import NormalLaw, contact_laws
 from taimill.model.drive import Drive
 from taimill.model.jars import Jar, load_jar
-from taimill.model.materials import FRICTION_KEYS, Balls, Friction, load_friction, load_material, read_friction
+from taimill.model.materials import (FRICTION_KEYS, Balls, Friction, contact_table, load_friction, load_material,
+                                     read_friction)
 from taimill.model.positions import load_positions
 from taimill.model.ranges import RANGES
 from taimill.model.tables import Table, read_toml
@@ -136,6 +137,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     jar_key = "jar_rpm" if t.has("jar_rpm") else "ratio"
     jar_speed = t.get(jar_key, **RANGES[jar_key].bounds)
     plate_radius = t.get("plate_radius_mm", 125.0, lo=0, lo_open=True, hi=2000) * 1e-3
+    rules.plate_fits_jar(t.where("plate_radius_mm"), plate_radius, jar)
 
     duration = t.get("duration", lo=0, lo_open=True, hi=36000)
     if "duration" in overridden and "analysis_start" not in overridden and data.get("analysis_start", 0) >= duration:
@@ -169,7 +171,10 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     if t.has("initial_positions"):
         init = load_positions(t.get("initial_positions", kind=str), path.parent, balls, jar, source)
     t.done()
-    warnings: list[str] = []
+    measured = contact_table(contact)[0].get("ball_radius_mm")
+    notes = (rules.ball_size_note(balls.radius, measured * 1e-3 if isinstance(measured, (int, float)) else None, contact),
+             rules.start_up_note(analysis_start, duration, ramp_time))
+    warnings = [n for n in notes if n]
     return Preset(
         source, jar, balls, pair, friction, ball_ball, ball_wall, drive, plate_radius,
         duration, analysis_start, dt, is_auto, seed, rate, gravity, init, wall_friction, tuple(warnings),

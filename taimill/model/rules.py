@@ -158,3 +158,43 @@ def running_dt(preset, plate_omega: float, jar_spin: float, fixed: float | None 
     v = max_impact_speed(plate_omega, jar_spin, preset.plate_radius, preset.jar, preset.gravity)
     dt = auto_dt(preset.ball_ball, preset.ball_wall, preset.frictions, preset.balls, v)
     return dt if fixed is None else min(fixed, dt)
+
+
+# ------------------------------------------------------------------ plausibility
+BALL_SIZE_FACTOR = 10.0  #: a ball this many times larger or smaller than its contact set's is far outside it
+
+
+def plate_fits_jar(source, plate_radius: float, jar):
+    """The jar's axis is carried at R_p (m) from the plate's: a plate radius below the
+    jar's own (a slip of units, 0.07 for 70 mm) puts the plate's axis inside the jar."""
+    if plate_radius <= jar.radius:
+        raise ConfigError(source, "plate_radius_mm", plate_radius * 1e3,
+                          f"allowed range ({jar.radius * 1e3:.4g}, 2000] mm: the jar's axis must lie outside the jar "
+                          f"{jar.name} (radius {jar.radius * 1e3:.4g} mm)")
+
+
+def ball_size_note(radius: float, measured: float | None, contact: str) -> str | None:
+    """A line if the balls' radius (m) is more than BALL_SIZE_FACTOR times off the radius
+    `measured` (m) its contact set was measured or fitted for: its stiffness follows the
+    radius, but its damping and full-damping depth were fitted at the measured size (a
+    unit slip, 0.006 for 6 mm, also lands here). None: plausible, or no measured size."""
+    if not measured or 1.0 / BALL_SIZE_FACTOR <= radius / measured <= BALL_SIZE_FACTOR:
+        return None
+    return (f"balls of radius {radius * 1e3:.4g} mm are {max(radius / measured, measured / radius):.3g} times "
+            f"{'smaller' if radius < measured else 'larger'} than the {measured * 1e3:.4g} mm balls contact set "
+            f"'{contact}' was measured for; its damping may not hold at this size (radius_mm is in mm)")
+
+
+def start_up_note(analysis_start: float, duration: float, ramp_time: float) -> str | None:
+    """A line if the analysis window (analysis_start … duration, s) begins inside the
+    start-up ramp (0 … ramp_time, s), where the speeds still rise: its figures would mix
+    start-up and milling. None: the window starts at or after the ramp's end."""
+    if analysis_start >= ramp_time:
+        return None
+    if duration <= ramp_time:
+        return (f"the whole run ({duration:g} s) lies inside the {ramp_time:g} s start-up ramp: the mill never "
+                f"reaches its speeds; give a duration above {ramp_time:g} s and analysis_start ≥ {ramp_time:g} s "
+                f"(--duration, --analysis-start) or a shorter ramp_time")
+    return (f"the analysis window starts at {analysis_start:g} s, inside the {ramp_time:g} s start-up ramp: "
+            f"its figures mix start-up and milling; give analysis_start ≥ {ramp_time:g} s (--analysis-start) "
+            f"or a shorter ramp_time")

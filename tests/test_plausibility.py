@@ -1,0 +1,79 @@
+"""Plausibility checks: values that load but are likely slips (a plate radius in metres
+where mm are meant, a ball radius a thousand times off, an analysis window inside the
+start-up ramp, a run of hours) are refused or said in one line before anything runs;
+every shipped preset passes them without a word."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from taimill.cli.run import long_run_note
+from taimill.errors import ConfigError
+from taimill.model import rules
+from taimill.model.preset import load_preset
+
+ROOT = Path(__file__).resolve().parent.parent
+PRESETS = sorted((ROOT / "presets").glob("*.toml"))
+CY = str(ROOT / "presets" / "p4-cy-steel.toml")
+
+
+def _preset(tmp_path, top: str = "", radius_mm: float = 6) -> str:
+    """The CY steel preset with `top` lines added and the balls' radius given."""
+    text = (f'jar = "CY"\npair = "steel-steel"\nplate_rpm = 200\nratio = -2.6\nduration = 2.0\n'
+            f'analysis_start = 1.0\n{top}\n[balls]\ncount = 12\nmaterial = "steel-c1020"\nradius_mm = {radius_mm}\n')
+    path = tmp_path / "p.toml"
+    path.write_text(text)
+    return str(path)
+
+
+@pytest.mark.parametrize("path", PRESETS, ids=lambda p: p.stem)
+def test_every_shipped_preset_passes_the_checks_silently(path):
+    assert load_preset(path).warnings == ()
+
+
+def test_a_plate_radius_below_the_jars_is_refused(tmp_path):
+    # 0.07 for 70 mm: the plate's axis would lie inside the CY jar (radius 32.5 mm)
+    with pytest.raises(ConfigError) as e:
+        load_preset(_preset(tmp_path, "plate_radius_mm = 0.07"))
+    text = str(e.value)
+    assert "plate_radius_mm" in text and "0.07" in text and "(32.5, 2000] mm" in text and "\n" not in text
+    assert load_preset(_preset(tmp_path, "plate_radius_mm = 70")).plate_radius == pytest.approx(0.07)
+
+
+def test_a_ball_far_from_its_contact_sets_size_warns(tmp_path):
+    # the steel set was measured with 6 mm balls: 0.006 (µm where mm were meant) warns,
+    # 60 mm (10×) is the last size that does not; both still run
+    slip = load_preset(_preset(tmp_path, radius_mm=0.006), {"duration": 1.5})
+    assert len(slip.warnings) == 1 and "1e+03 times smaller" in slip.warnings[0] and "'steel'" in slip.warnings[0]
+    assert rules.ball_size_note(0.06, 0.006, "steel") is None
+    assert "larger" in rules.ball_size_note(0.0601, 0.006, "steel")
+    assert rules.ball_size_note(0.006, None, "derived") is None
+
+
+def test_an_analysis_window_inside_the_start_up_ramp_warns_and_says_how_to_fix_it():
+    inside = load_preset(CY, {"duration": 0.9})  # the whole run inside the 1 s ramp
+    assert len(inside.warnings) == 1 and "whole run (0.9 s)" in inside.warnings[0] and "--duration" in inside.warnings[0]
+    partly = load_preset(CY, {"duration": 3.0, "analysis_start": 0.5})
+    assert len(partly.warnings) == 1 and "starts at 0.5 s" in partly.warnings[0] and "--analysis-start" in partly.warnings[0]
+    assert load_preset(CY, {"duration": 3.0, "analysis_start": 1.0}).warnings == ()
+
+
+def test_warnings_are_printed_one_line_each_before_anything_runs(tmp_path):
+    # through the real command line (export liggghts: loads the preset, no kernels)
+    proc = subprocess.run([sys.executable, "-m", "taimill.cli", "export", "liggghts", CY, "--duration", "0.9",
+                           "--out", str(tmp_path / "case")], cwd=tmp_path, capture_output=True, text=True,
+                          env=dict(os.environ, PYTHONPATH=str(ROOT)), timeout=300)
+    lines = proc.stderr.splitlines()  # the preset's warning first, then the export's own (model mapping)
+    assert proc.returncode == 0 and lines[0].startswith("taimill: warning: the whole run (0.9 s)"), proc.stderr
+    assert sum("start-up ramp" in ln for ln in lines) == 1
+
+
+def test_a_run_of_more_than_a_few_minutes_states_its_estimate():
+    assert long_run_note(load_preset(CY)) is None  # ≈ 4 s on one core
+    note = long_run_note(load_preset(ROOT / "presets" / "p4-zr80-beads-1mm.toml"))
+    assert note is not None and "30000 balls" in note and " h" in note

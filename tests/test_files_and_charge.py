@@ -66,6 +66,11 @@ def test_bundled_preset_runs_by_name_from_another_folder(tmp_path):
     assert '"events"' in res.stdout
 
 
+def test_a_bundled_preset_by_its_repository_path_from_another_folder_names_the_way(tmp_path):
+    one_line_error(taimill("run", "presets/p4-cy-steel.toml", cwd=tmp_path), "no such preset file here",
+                   "taimill run p4-cy-steel")
+
+
 def test_presets_and_jars_list_from_another_folder(tmp_path):
     res = taimill("presets", cwd=tmp_path)
     assert res.returncode == 0, res.stderr

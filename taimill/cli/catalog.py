@@ -118,16 +118,27 @@ def cmd_jars(a) -> int:
                            what="figure", ours=is_figure, inputs=inputs)
         print(draw_jar(jar, out))
         return 0
+    from taimill.errors import ConfigError
+
     names = jar_names()
     cy = load_jar("CY").volume if "CY" in names else None
-    rows = [jar_row(load_jar(n), cy) for n in names]
+    rows = []
+    for n in names:  # a bundled file that does not load is listed with why, not the end of the listing
+        try:
+            rows.append(jar_row(load_jar(n), cy))
+        except ConfigError as err:
+            rows.append({"name": n, "error": str(err)})
     if a.json:
         print(json.dumps(rows, indent=1, ensure_ascii=False))
         return 0
-    print(f"{'jar':6} {'area mm²':>9} {'vol ml':>7} {'/CY':>6} {'pieces':>6} {'fillet mm':>9}  description")
+    w = max([6] + [len(r["name"]) for r in rows])
+    print(f"{'jar':{w}} {'area mm²':>9} {'vol ml':>7} {'/CY':>6} {'pieces':>6} {'fillet mm':>9}  description")
     for r in rows:
+        if "error" in r:
+            print(f"{r['name']:{w}} (cannot load: {r['error']})")
+            continue
         ratio = "-" if r["ratio_to_CY"] is None else f"{r['ratio_to_CY']:.3f}"
-        print(f"{r['name']:6} {r['area_mm2']:9.1f} {r['volume_ml']:7.2f} {ratio:>6} {r['pieces']:6d} "
+        print(f"{r['name']:{w}} {r['area_mm2']:9.1f} {r['volume_ml']:7.2f} {ratio:>6} {r['pieces']:6d} "
               f"{r['fillet_mm']:9g}  {r['description']}")
     return 0
 

@@ -1,5 +1,7 @@
-"""The user's files in and out: reading a preset, jar, pair file or CSV, and checking a
-path a command will write before anything runs. Every OS, size and decoding problem
+"""The user's files in and out: finding a preset, jar, pair or mill file by name or path
+(`resolve`: a name is a bundled file of the package, a path the user's), telling their
+kinds apart (`kind_of`), reading a preset, jar, pair file or CSV, and checking a path a
+command will write before anything runs. Every OS, size and decoding problem
 becomes the one-line ConfigError naming who gave the path (a file or the command line),
 the key or option, the path and what is wrong.
 

@@ -95,6 +95,9 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     rules.one_of_two("command line", "--filling", overrides.get("balls.filling"), "--balls", overrides.get("balls.count"))
     text = files.check_path_text(str(path) if isinstance(path, Path) else path, "command line", "preset", "a preset file")
     path = files.resolve(text, "preset", True, source="command line", key="preset")
+    if files.missing(path) and path.stem in files.bundled_names("preset"):  # presets/NAME.toml from another folder
+        raise ConfigError("command line", "preset", text, f"no such preset file here; the bundled preset of this name "
+                          f"runs from any folder as `taimill run {path.stem}`")
     data = read_toml(path, "preset", "command line")
     files.check_kind(data, "preset", text, "command line", "preset")
     source = str(path)

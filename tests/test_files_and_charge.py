@@ -97,6 +97,22 @@ def test_a_name_is_bundled_and_a_path_is_a_file(tmp_path, monkeypatch):
         files.resolve("nope", "mill", False, tmp_path)
 
 
+def test_a_jar_name_falls_back_to_the_bundled_bowls_and_a_missing_bowls_folder_is_none(tmp_path, monkeypatch):
+    from taimill.model.jars import jar_names
+
+    bowls = tmp_path / "bowls"
+    monkeypatch.setitem(files.BUNDLED, "jar", (files.DATA / "jars", bowls))
+    assert "B1" not in jar_names()  # no folder: no bowls, no error
+    with pytest.raises(ConfigError, match="known jars: 1L"):
+        load_jar("B1", "command line")
+    bowls.mkdir()
+    (bowls / "B1.toml").write_text((ROOT / "jars" / "ZR500.toml").read_text())
+    (bowls / "CY.toml").write_text((ROOT / "jars" / "ZR500.toml").read_text())  # a jar's name wins over a bowl's
+    assert "B1" in jar_names()
+    assert load_jar("B1", "command line").volume == pytest.approx(load_jar("ZR500").volume)
+    assert load_jar("CY").volume == pytest.approx(79.97e-6, rel=1e-3)
+
+
 def test_a_jar_given_on_the_command_line_is_read_from_the_current_folder(tmp_path, monkeypatch):
     res = taimill("jars", "new", "myjar", "--volume", 80, "--diameter", 65, cwd=tmp_path)
     assert res.returncode == 0, res.stderr

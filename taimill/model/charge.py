@@ -13,9 +13,9 @@ from taimill.model import rules
 from taimill.model.ranges import RANGES
 
 #: Packing fraction φ of a ball bed at rest (solid volume / bulk volume). An estimate:
-#: equal spheres pack at random between random loose packing (≈ 0.55) and random close
-#: packing (0.64 ± 0.02, J. G. Berryman, Phys. Rev. A 27, 1053 (1983)); a bed poured into
-#: a small bowl, loosened by the wall, lies between the two.
+#: equal spheres pack at random between random loose packing (≈ 0.55, no source
+#: checked) and random close packing (0.64 ± 0.02, J. G. Berryman, Phys. Rev. A 27, 1053
+#: (1983)); a bed poured into a small bowl, loosened by the wall, lies between the two.
 PACKING_FRACTION = 0.60
 MAX_RANDOM_FILL = 0.45  #: solid fraction of the jar balls placed at random can reach (preset._check_fill)
 BPR_TOLERANCE = 0.01  #: relative disagreement allowed between powder.mass_g and powder.ball_to_powder

@@ -1,4 +1,6 @@
-"""`taimill presets`, `taimill jars [show NAME]`: what can be run, and the jars drawn."""
+"""`taimill presets`, `taimill jars [show NAME | new NAME]`: what can be run (the bundled
+presets, jars and bowls, by name from any folder), the jars drawn, and a cylinder jar
+built from a bowl's volume and diameter."""
 
 from __future__ import annotations
 
@@ -13,17 +15,29 @@ FIGURE_SUFFIXES = (".png", ".svg")
 
 
 def register(sub) -> None:
-    from taimill.cli.common import name_text, path_text
+    from taimill.cli.common import name_text, number, path_text
 
-    sub.add_parser("presets", help="list presets").set_defaults(fn=cmd_presets)
-    j = sub.add_parser("jars", help="list jars (area, volume, pieces); 'jars show NAME' draws one")
+    p = sub.add_parser("presets", help="list the bundled presets (run one by name: taimill run NAME)")
+    p.add_argument("--describe", action="store_true", help="each preset's description (its first sentence) instead of the table")
+    p.set_defaults(fn=cmd_presets)
+    j = sub.add_parser("jars", help="list the bundled jars and bowls (area, volume, pieces); "
+                                    "'jars show NAME' draws one, 'jars new NAME' builds a cylinder")
     j.add_argument("--json", action="store_true", help="print the table as a JSON list")
     j.set_defaults(fn=cmd_jars)
     jsub = j.add_subparsers(dest="jar_command")
     js = jsub.add_parser("show", help="draw a jar's outline and signed-distance field")
-    js.add_argument("name", type=name_text, help="jar name (jars/NAME.toml) or path to a jar TOML")
+    js.add_argument("name", type=name_text, help="a bundled jar or bowl by name, or a jar file NAME.toml")
     js.add_argument("--out", type=path_text, help="image to write, .png or .svg (default jar-NAME.png)")
     js.add_argument("--overwrite", action="store_true", help="replace an existing --out image")
+    jn = jsub.add_parser("new", help="write a cylinder jar file from a bowl's inside volume and diameter")
+    jn.add_argument("name", type=name_text, help="the jar's name (letters, digits, . _ -); the file is NAME.toml")
+    jn.add_argument("--volume", type=number, required=True, help="inside volume (ml), e.g. the maker's nominal 250")
+    jn.add_argument("--diameter", type=number, required=True, help="inside diameter (mm); height = V / (π r²)")
+    jn.add_argument("--fillet", type=number, default=0.0,
+                    help="fillet radius (mm), recorded in the file; a plain cylinder's cross-section has no corner it rounds")
+    jn.add_argument("--material", default="aisi-304", help="wall material of taimill/data/materials.toml (default aisi-304)")
+    jn.add_argument("--out", type=path_text, help="jar file to write, .toml (default NAME.toml in the current folder)")
+    jn.add_argument("--overwrite", action="store_true", help="replace an existing --out jar file written by jars new")
 
 
 def first_sentence(path) -> str:
@@ -38,27 +52,62 @@ def first_sentence(path) -> str:
     return text[: end.start() + 1] if end else text
 
 
-def cmd_presets(a) -> int:
-    from taimill.model.files import ROOT
+PRESET_COLUMNS = (("preset", "<"), ("jar", "<"), ("balls", ">"), ("r mm", ">"), ("pair", "<"), ("K", ">"),
+                  ("Ω rpm", ">"), ("duration s", ">"))
 
-    paths = sorted((ROOT / "presets").glob("*.toml"))
-    names = [str(p.relative_to(ROOT)) for p in paths]
-    w = max(map(len, names), default=0) + 2
+
+def preset_row(name: str) -> tuple[str, ...]:
+    """One bundled preset's table row; a preset that does not load shows why instead."""
+    from taimill.errors import ConfigError
+    from taimill.model.preset import load_preset
+
+    try:
+        p = load_preset(name)
+    except (ConfigError, OSError) as err:
+        return (name, f"(cannot load: {err})")
+    return (name, p.jar.name, str(p.balls.count), f"{p.balls.radius * 1e3:g}", p.pair, f"{p.drive.ratio:g}",
+            f"{p.drive.plate_rpm:g}", f"{p.duration:g}")
+
+
+def cmd_presets(a) -> int:
+    from taimill.model.files import BUNDLED, bundled_names
+
+    if a.describe:
+        describe([BUNDLED["preset"][0] / f"{n}.toml" for n in bundled_names("preset")])
+        return 0
+    rows = [preset_row(n) for n in bundled_names("preset")]
+    widths = [max([len(h)] + [len(r[i]) for r in rows if len(r) == len(PRESET_COLUMNS)])
+              for i, (h, _) in enumerate(PRESET_COLUMNS)]
+
+    def line(cells):
+        return "  ".join(f"{c:{al}{w}}" for c, (_, al), w in zip(cells, PRESET_COLUMNS, widths)).rstrip()
+
+    print(line([h for h, _ in PRESET_COLUMNS]))
+    for r in rows:
+        print(line(r) if len(r) == len(PRESET_COLUMNS) else f"{r[0]:{widths[0]}}  {r[1]}")
+    print("run one by name from any folder: taimill run NAME; its file: taimill/data/presets/NAME.toml")
+    return 0
+
+
+def describe(paths) -> None:
+    """Each preset's name, then its first sentence, wrapped, never cut."""
+    w = max((len(p.stem) for p in paths), default=0) + 2
     width = max(shutil.get_terminal_size().columns, w + 40)
-    for name, p in zip(names, paths):  # wrapped, never cut: the name, then the first sentence
+    for p in paths:
         try:
             first = first_sentence(p)
         except (OSError, UnicodeDecodeError) as err:  # a folder or unreadable file named *.toml
             first = f"(cannot read: {getattr(err, 'strerror', None) or err})"
-        print(textwrap.fill(first, width, initial_indent=name.ljust(w), subsequent_indent=" " * w,
+        print(textwrap.fill(first, width, initial_indent=p.stem.ljust(w), subsequent_indent=" " * w,
                             break_long_words=False, break_on_hyphens=False))
-    return 0
 
 
 def cmd_jars(a) -> int:
     from taimill.figures.jars import draw_jar, jar_row
     from taimill.model.jars import jar_names, load_jar
 
+    if getattr(a, "jar_command", None) == "new":
+        return cmd_jars_new(a)
     if getattr(a, "jar_command", None) == "show":
         from taimill.figures import is_figure
         from taimill.model.files import check_output, reads
@@ -69,15 +118,54 @@ def cmd_jars(a) -> int:
                            what="figure", ours=is_figure, inputs=inputs)
         print(draw_jar(jar, out))
         return 0
+    from taimill.errors import ConfigError
+
     names = jar_names()
     cy = load_jar("CY").volume if "CY" in names else None
-    rows = [jar_row(load_jar(n), cy) for n in names]
+    rows = []
+    for n in names:  # a bundled file that does not load is listed with why, not the end of the listing
+        try:
+            rows.append(jar_row(load_jar(n), cy))
+        except ConfigError as err:
+            rows.append({"name": n, "error": str(err)})
     if a.json:
         print(json.dumps(rows, indent=1, ensure_ascii=False))
         return 0
-    print(f"{'jar':6} {'area mm²':>9} {'vol ml':>7} {'/CY':>6} {'pieces':>6} {'fillet mm':>9}  description")
+    w = max([6] + [len(r["name"]) for r in rows])
+    print(f"{'jar':{w}} {'area mm²':>9} {'vol ml':>7} {'/CY':>6} {'pieces':>6} {'fillet mm':>9}  description")
     for r in rows:
+        if "error" in r:
+            print(f"{r['name']:{w}} (cannot load: {r['error']})")
+            continue
         ratio = "-" if r["ratio_to_CY"] is None else f"{r['ratio_to_CY']:.3f}"
-        print(f"{r['name']:6} {r['area_mm2']:9.1f} {r['volume_ml']:7.2f} {ratio:>6} {r['pieces']:6d} "
+        print(f"{r['name']:{w}} {r['area_mm2']:9.1f} {r['volume_ml']:7.2f} {ratio:>6} {r['pieces']:6d} "
               f"{r['fillet_mm']:9g}  {r['description']}")
+    return 0
+
+
+def cmd_jars_new(a) -> int:
+    """Write a cylinder jar file (taimill.model.jars.cylinder_jar_text), then load it back."""
+    from taimill.errors import ConfigError
+    from taimill.model.files import check_output
+    from taimill.model.jars import BUILT_MARK, cylinder_jar_text, load_jar
+
+    if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]*", a.name) or a.name.endswith(".toml"):
+        raise ConfigError("command line", "NAME", a.name, "a jar name: letters, digits, '.', '_' and '-', without .toml")
+    text = cylinder_jar_text(a.name, a.volume, a.diameter, a.fillet, a.material)
+
+    def ours(p: Path) -> bool:
+        try:
+            return p.is_file() and p.read_text(encoding="utf-8", errors="replace").startswith(BUILT_MARK)
+        except OSError:
+            return False
+
+    out = check_output(a.out or f"{a.name}.toml", "--out", overwrite=a.overwrite, suffixes=(".toml",),
+                       what="jar file", ours=ours)
+    try:
+        out.write_text(text, encoding="utf-8")
+    except OSError as err:
+        raise ConfigError("command line", "--out", str(out), f"cannot write: {err.strerror or err}") from None
+    jar = load_jar(str(out), "command line")
+    print(f"{out}: {jar.description}, height {jar.height * 1e3:.4g} mm, volume {jar.volume * 1e6:.4g} ml; "
+          f"use it with --jar {out} or jar = \"{out}\" in a preset")
     return 0

@@ -16,6 +16,7 @@ from taimill.schema import SUMMARY_ROWS
 
 EXIT_BAD_INPUT, EXIT_UNSTABLE = 2, 3
 LAW_HELP = f"normal contact law ({', '.join(NAMES)})"
+PRESET_HELP = "a bundled preset by name (`taimill presets`), e.g. p4-cy-steel, or a preset file NAME.toml"
 LIVE_IGNORED = ("duration", "analysis_start")  #: overrides a live mill has no use for (it runs until quit)
 
 
@@ -91,7 +92,8 @@ def overrides(a) -> dict:
     dt = dt_option(a.dt)
     given = {
         "ratio": a.ratio, "jar_rpm": a.jar_rpm, "plate_rpm": a.plate_rpm, "pair": a.pair,
-        "jar": a.jar, "balls.count": a.balls, "seed": a.seed, "duration": getattr(a, "duration", None), "dt": dt,
+        "jar": a.jar, "balls.count": a.balls, "balls.filling": a.filling, "powder.mass_g": a.powder_mass,
+        "seed": a.seed, "duration": getattr(a, "duration", None), "dt": dt,
         "law": a.law, "analysis_start": getattr(a, "analysis_start", None),
     }
     return {k: v for k, v in given.items() if k not in LIVE_IGNORED or hasattr(a, k)}
@@ -104,8 +106,12 @@ def add_overrides(p, live: bool = False):
     g.add_argument("--jar-rpm", type=number, help="ω, jar speed relative to the plate (rpm)")
     g.add_argument("--plate-rpm", type=number, help="Ω (rpm, not 0)")
     g.add_argument("--pair", type=name_text, help="friction pair, e.g. steel-fluorite, or a pair file NAME.toml")
-    g.add_argument("--jar", type=name_text, help="jar name (jars/NAME.toml) or path")
-    g.add_argument("--balls", type=integer, help="number of balls")
+    g.add_argument("--jar", type=name_text,
+                   help="a bundled jar or bowl by name (`taimill jars`), or a jar file NAME.toml (from the current folder)")
+    g.add_argument("--balls", type=integer, help="number of balls; or give --filling, not both")
+    g.add_argument("--filling", type=number,
+                   help="ball filling degree: the ball bed's bulk volume / the jar's (about 1/3 is usual); sets the ball count")
+    g.add_argument("--powder-mass", type=number, help="powder charged (g): recorded with the run, not simulated")
     g.add_argument("--seed", type=integer, help="seed of the random ball placement (integer ≥ 0; default: the preset's, else 0)")
     if not live:
         g.add_argument("--duration", type=number,

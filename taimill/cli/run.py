@@ -5,12 +5,13 @@ from __future__ import annotations
 import json
 import sys
 
-from taimill.cli.common import EXIT_UNSTABLE, add_overrides, overrides, path_text, plain, stderr_console, summary_table
+from taimill.cli.common import (EXIT_UNSTABLE, PRESET_HELP, add_overrides, overrides, path_text, plain, stderr_console,
+                                summary_table)
 
 
 def register(sub) -> None:
     r = sub.add_parser("run", help="simulate a preset, summarise, store")
-    r.add_argument("preset", type=path_text, help="preset TOML file, e.g. presets/p4-cy-steel.toml")
+    r.add_argument("preset", type=path_text, help=PRESET_HELP)
     r.add_argument("--out", type=path_text, help="zarr store to write (RUN.zarr)")
     r.add_argument("--overwrite", action="store_true", help="replace an existing --out store or --rrd file")
     r.add_argument("--rrd", type=path_text, help="rerun recording to write (RUN.rrd); open it with `taimill view RUN.rrd`")

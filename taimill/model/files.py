@@ -1,5 +1,7 @@
-"""The user's files in and out: reading a preset, jar, pair file or CSV, and checking a
-path a command will write before anything runs. Every OS, size and decoding problem
+"""The user's files in and out: finding a preset, jar, pair or mill file by name or path
+(`resolve`: a name is a bundled file of the package, a path the user's), telling their
+kinds apart (`kind_of`), reading a preset, jar, pair file or CSV, and checking a path a
+command will write before anything runs. Every OS, size and decoding problem
 becomes the one-line ConfigError naming who gave the path (a file or the command line),
 the key or option, the path and what is wrong.
 
@@ -24,7 +26,15 @@ from taimill.errors import ConfigError
 
 MAX_INPUT_BYTES = 64 * 2**20  #: a preset, jar, pair file or measured CSV is far smaller
 PACKAGE = Path(__file__).resolve().parent.parent  #: taimill/, home of the built-in materials
-ROOT = PACKAGE.parent  #: the repository, home of jars/ and presets/
+ROOT = PACKAGE.parent  #: the repository (its presets/ and jars/ link to the bundled ones)
+DATA = PACKAGE / "data"  #: the bundled files, installed with the package
+#: kind → the folders of its bundled files, searched in order for a NAME given without .toml
+BUNDLED = {
+    "preset": (DATA / "presets",),
+    "jar": (DATA / "jars", DATA / "bowls"),
+    "mill": (DATA / "mills",),
+    "pair": (),  # built-in pairs are tables of materials.toml, not files
+}
 _READS: list[set] = []  #: the sets of the `reads()` blocks open now
 
 
@@ -112,6 +122,78 @@ def read_toml(path, source, key, what: str = "TOML file") -> dict:
         raise ConfigError(path, key, str(path), f"not valid TOML ({err})") from None
     except RecursionError:
         raise ConfigError(path, key, str(path), "not valid TOML (arrays or tables nested too deeply)") from None
+
+
+def bundled_names(kind: str) -> list[str]:
+    """The names of the bundled files of a kind (a folder not installed holds none)."""
+    return sorted({p.stem for folder in BUNDLED[kind] if folder.is_dir() for p in folder.glob("*.toml")})
+
+
+def is_name(text: str) -> bool:
+    """True if `text` names a bundled file (no .toml ending, no folder) rather than a path."""
+    return not text.endswith(".toml") and "/" not in text and os.sep not in text
+
+
+def resolve(name_or_path, kind: str, given_on_command_line: bool, base: Path | None = None, *,
+            source=None, key: str | None = None) -> Path:
+    """The file a preset, jar, pair file or mill file names. A name (no .toml ending, no
+    folder: "CY", "p4-cy-steel") is the bundled file of that kind, looked up in
+    BUNDLED[kind] in order; a name no folder holds is a ConfigError listing the known
+    names. A path is taken as it is if absolute, else relative to the current folder
+    when given on the command line, and to `base` (the folder of the file that names it)
+    otherwise. `source` and `key` (default: "command line" or `base`, and `kind`) are
+    who named it, for the error; a path is not checked here (reading it says why)."""
+    text = os.fspath(name_or_path)
+    if not is_name(text):
+        p = Path(text)
+        return p if p.is_absolute() or given_on_command_line or base is None else Path(base) / p
+    for folder in BUNDLED[kind]:
+        p = folder / f"{text}.toml"
+        if not missing(p):
+            return p
+    if source is None:
+        source = "command line" if given_on_command_line else base
+    names = bundled_names(kind)
+    known = f"known {kind}s: {', '.join(names)}" if names else f"no {kind}s are bundled"
+    raise ConfigError(source, key or kind, text, f"no bundled {kind} of this name (a file name ends in .toml); {known}")
+
+
+MILL_GEAR_KEYS = ("gear", "gears", "stations")  #: with plate_radius_mm: a mill file
+
+
+def kind_of(data: dict) -> str | None:
+    """Which kind of taimill file a TOML file's tables are, by their characteristic keys:
+    "mill" (plate_radius_mm with a gear or stations key), "jar" (a [[profile]]), "pair"
+    ([pair.NAME] or [contact.NAME] tables), "preset" (a [balls] table, or a jar or pair
+    named by a string); None if none of these shows (an empty file)."""
+    if "plate_radius_mm" in data and any(k.startswith(MILL_GEAR_KEYS) for k in data):
+        return "mill"
+    if "profile" in data:
+        return "jar"
+    if isinstance(data.get("pair"), dict) or isinstance(data.get("contact"), dict):
+        return "pair"
+    if isinstance(data.get("balls"), dict) or isinstance(data.get("jar"), str) or isinstance(data.get("pair"), str):
+        return "preset"
+    return None
+
+
+#: kind → how a file of that kind is used
+USES = {
+    "preset": "run it with `taimill run {path}`",
+    "jar": "use it with --jar {path} or jar = \"{path}\" in a preset",
+    "pair": "use it with --pair {path} or pair = \"{path}\" in a preset",
+    "mill": "use it with mill = \"{path}\" in a preset",
+}
+
+
+def check_kind(data: dict, kind: str, path, source, key) -> None:
+    """Refuse, in one line that says how to use it, a file of another kind than `kind`
+    (a jar file given as a preset…); a file of no recognisable kind is left to the
+    loader's key checks."""
+    found = kind_of(data)
+    if found is not None and found != kind:
+        raise ConfigError(source, key, str(path), f"this is a {found} file, not a {kind} file; "
+                          + USES[found].format(path=path))
 
 
 def _inside(path: Path, folder: Path) -> bool:

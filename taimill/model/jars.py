@@ -1,9 +1,11 @@
 """Jars: a 2-D profile of primitives (circle, cuts, lifters) extruded between floor and
-lid, read from jars/NAME.toml or a jar file and checked before its geometry is built."""
+lid, read from a bundled jar or bowl (taimill/data/jars/NAME.toml, then
+taimill/data/bowls/NAME.toml) or a jar file and checked before its geometry is built."""
 
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -12,7 +14,7 @@ from taimill.model import files, geometry
 from taimill.model.materials import load_material
 from taimill.model.tables import Table, read_toml
 
-JARS_DIR = files.ROOT / "jars"
+JARS_DIR = files.BUNDLED["jar"][0]  #: the bundled jars (bundled bowls are jars too: files.BUNDLED)
 JAR_KEYS = ("height_mm", "wall_material", "description", "fillet_mm", "profile")
 
 
@@ -63,23 +65,27 @@ PRIMITIVES = {
 }
 
 
-def resolve_jar_path(name: str, base: Path | None = None) -> Path:
-    p = Path(name)
-    if p.suffix == ".toml":
-        return p if p.is_absolute() or base is None else (base / p)
-    return JARS_DIR / f"{name}.toml"
+def resolve_jar_path(name: str, base: Path | None = None, source="preset") -> Path:
+    """A jar's file: a name is a bundled jar or bowl; a path (ending in .toml) is
+    relative to `base` (the folder of the preset naming it), or to the current folder
+    if base is None (a jar given on the command line)."""
+    return files.resolve(name, "jar", base is None, base, source=source, key="jar")
 
 
 def jar_names() -> list[str]:
-    return sorted(p.stem for p in JARS_DIR.glob("*.toml"))
+    """The bundled jars and bowls, by name."""
+    return files.bundled_names("jar")
 
 
 def load_jar(name: str, source="preset", base: Path | None = None) -> Jar:
+    """A jar by name or file (see resolve_jar_path), checked."""
     files.check_path_text(name, source, "jar", "a jar name or jar file")
-    path = resolve_jar_path(name, base)
+    path = resolve_jar_path(name, base, source)
     if files.missing(path):
         raise ConfigError(source, "jar", name, f"no jar file {path}; known jars: {', '.join(jar_names())}")
-    t = Table(read_toml(path, "jar", source), path, known=JAR_KEYS)
+    data = read_toml(path, "jar", source)
+    files.check_kind(data, "jar", name, source, "jar")
+    t = Table(data, path, known=JAR_KEYS)
     height = t.get("height_mm", lo=0, lo_open=True, hi=1000) * 1e-3
     wall = t.get("wall_material", kind=str)
     desc = t.get("description", "", kind=str)
@@ -135,3 +141,43 @@ def _check_primitives(path, prims):
         if kind == "lifter" and v["distance"] <= v["radius"]:
             raise ConfigError(path, f"profile[{i}].distance_mm", v["distance"] * 1e3,
                               f"must exceed the lifter's radius_mm = {v['radius'] * 1e3:g}: its disc would cover the jar's axis")
+
+
+BUILT_MARK = "# Written by `taimill jars new`"  #: first line of a jar file the builder wrote
+
+
+def cylinder_jar_text(name: str, volume_ml: float, diameter_mm: float, fillet_mm: float = 0.0,
+                      material: str = "aisi-304", source="command line") -> str:
+    """A jar file (TOML text) of a plain cylinder of inside volume V and diameter D,
+    height = V / (π r²); impossible values are a ConfigError naming the option."""
+    h_lo, h_hi = 0.0, 1000.0  # mm, what load_jar takes
+    if not 0 < diameter_mm <= 2 * PRIMITIVES["circle"]["radius_mm"][1]:
+        raise ConfigError(source, "--diameter", diameter_mm, f"allowed range (0, {2 * PRIMITIVES['circle']['radius_mm'][1]:g}] mm")
+    if volume_ml <= 0:
+        raise ConfigError(source, "--volume", volume_ml, "must be a volume > 0 ml")
+    r = diameter_mm / 2
+    height = volume_ml * 1e3 / (math.pi * r**2)  # mm (1 ml = 1000 mm³)
+    if not h_lo < height <= h_hi:
+        raise ConfigError(source, "--volume", volume_ml, f"in a {diameter_mm:g} mm cylinder makes a jar {height:.4g} mm high; "
+                          f"allowed range ({h_lo:g}, {h_hi:g}] mm: give a volume of at most {math.pi * r**2 * h_hi * 1e-3:.4g} ml")
+    if not 0 <= fillet_mm < min(r, height / 2):
+        raise ConfigError(source, "--fillet", fillet_mm, f"allowed range [0, {min(r, height / 2):.4g}) mm: "
+                          f"below the radius ({r:g} mm) and half the height ({height:.4g} mm)")
+    try:
+        load_material(material, source)
+    except ConfigError as err:
+        raise ConfigError(source, "--material", material, err.allowed) from None
+    return "\n".join([
+        f"{BUILT_MARK} {name} --volume {volume_ml:g} --diameter {diameter_mm:g}"
+        + (f" --fillet {fillet_mm:g}" if fillet_mm else "") + f" --material {material}",
+        "# The inside volume and diameter are the user's figures; height = V / (pi r^2).",
+        f'description = "{volume_ml:g} ml cylinder, {diameter_mm:g} mm inside diameter, {material}"',
+        f"height_mm = {height:.6g}",
+        f'wall_material = "{material}"',
+        *([f"fillet_mm = {fillet_mm:g}  # a plain cylinder's cross-section has no corner to round"] if fillet_mm else []),
+        "",
+        "[[profile]]",
+        'type = "circle"',
+        f"radius_mm = {r:.6g}",
+        "",
+    ])

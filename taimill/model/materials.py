@@ -99,10 +99,11 @@ def _pair_file(name: str, source, key, base: Path | None) -> tuple[Friction, str
     """A pair file holds one [pair.NAME] table and the [contact.*] table it uses (same
     keys and units as materials.toml; materials are the built-in ones). Its contact
     set's id is "FILE#CONTACT"; a contact name the file lacks is a built-in one."""
-    path = Path(name) if Path(name).is_absolute() or base is None else base / name
+    path = files.resolve(name, "pair", base is None, base, source=source, key=key)
     if files.missing(path):  # a broken link or a name the OS refuses: read_toml says why
         raise ConfigError(source, key, name, f"no pair file {path}; built-in pairs: {', '.join(_materials_db()['pair'])}")
     data = read_toml(path, key, source)
+    files.check_kind(data, "pair", name, source, key)
     top = Table(data, path)
     extra = sorted(set(data) - {"pair", "contact"})
     if extra:

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from taimill.errors import ConfigError
-from taimill.model import files
+from taimill.model import charge, files
 from taimill.model import rules
 from taimill.model.contact.registry import NAMES as LAW_NAMES
 from taimill.model.contact_sets import NormalLaw, contact_laws
@@ -32,9 +32,13 @@ GRAVITY = 9.81  #: m/s²
 KINDS = ("ball_ball", "ball_wall")
 # The keys of each kind of table (unknown keys are errors, reported with the nearest known one)
 PRESET_KEYS = ("jar", "pair", "plate_rpm", "ratio", "jar_rpm", "duration", "analysis_start", "dt", "seed", "law",
-               "initial_positions", "ramp_time", "plate_radius_mm", "gravity", "balls", "outputs", "friction",
+               "initial_positions", "ramp_time", "plate_radius_mm", "gravity", "balls", "powder", "outputs", "friction",
                *(f"pair_{k}" for k in KINDS), *(f"friction_{k}" for k in KINDS))
-BALLS_KEYS = ("count", "material", "radius_mm")
+BALLS_KEYS = ("count", "filling", "material", "radius_mm")
+POWDER_KEYS = ("mass_g", "ball_to_powder")
+#: an override of one key drops the other from the file (the command line wins)
+EXCLUSIVE = {"ratio": "jar_rpm", "jar_rpm": "ratio", "balls.count": "balls.filling", "balls.filling": "balls.count",
+             "powder.mass_g": "powder.ball_to_powder"}
 OUTPUTS_KEYS = ("trajectory_rate",)
 
 INLINE_POSITIONS = 1000  # balls; a resolved config lists at most this many start positions
@@ -60,6 +64,7 @@ class Preset:
     gravity: float = GRAVITY  #: m/s²
     initial_positions: np.ndarray | None = field(default=None, compare=False, repr=False)
     wall_friction: Friction | None = None  #: of ball-wall contacts; None: `friction`
+    powder: charge.Powder | None = None  #: the powder charged (recorded, not simulated)
     #: one line each, for the user before the run starts: numbers that are estimates or
     #: assumptions, implausible but allowed values (the loader appends; cli prints them)
     warnings: tuple[str, ...] = field(default=(), compare=False)
@@ -74,6 +79,8 @@ class Preset:
         the drive's speeds are top-level keys in every form (see Drive.as_dict)."""
         d = dataclasses.asdict(dataclasses.replace(self, initial_positions=None))
         del d["drive"], d["warnings"]
+        if self.powder is None:
+            del d["powder"]
         x = self.initial_positions
         if x is not None:  # inline for a few balls; the trajectory's first frame holds them all anyway
             d["initial_positions"] = x.tolist() if len(x) <= INLINE_POSITIONS else f"{len(x)} ball centres: the trajectory's first frame"
@@ -81,13 +88,19 @@ class Preset:
 
 
 def load_preset(path, overrides: dict | None = None) -> Preset:
-    """Read and validate a preset. `overrides` maps preset keys to values given on the
+    """Read and validate a preset: a bundled preset's name ("p4-cy-steel") or a file
+    (relative to the current folder). `overrides` maps preset keys to values given on the
     command line (e.g. {"ratio": -3.0, "balls.count": 24}); they win over the file."""
     overrides = overrides or {}
     rules.one_jar_speed("command line", overrides.get("ratio"), overrides.get("jar_rpm"), options=True)
-    files.check_path_text(str(path) if isinstance(path, Path) else path, "command line", "preset", "a preset file")
-    path = Path(path)
+    rules.one_of_two("command line", "--filling", overrides.get("balls.filling"), "--balls", overrides.get("balls.count"))
+    text = files.check_path_text(str(path) if isinstance(path, Path) else path, "command line", "preset", "a preset file")
+    path = files.resolve(text, "preset", True, source="command line", key="preset")
+    if files.missing(path) and path.stem in files.bundled_names("preset"):  # presets/NAME.toml from another folder
+        raise ConfigError("command line", "preset", text, f"no such preset file here; the bundled preset of this name "
+                          f"runs from any folder as `taimill run {path.stem}`")
     data = read_toml(path, "preset", "command line")
+    files.check_kind(data, "preset", text, "command line", "preset")
     source = str(path)
     Table(data, source, known=PRESET_KEYS)
     for key, value in overrides.items():
@@ -98,21 +111,25 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
         if not isinstance(target, dict):
             raise ConfigError(source, table, target, "must be a table")
         target[leaf] = value
-        if key in ("ratio", "jar_rpm"):
-            data.pop("jar_rpm" if key == "ratio" else "ratio", None)
+        if key in EXCLUSIVE and overrides.get(EXCLUSIVE[key]) is None:
+            target.pop(EXCLUSIVE[key].rpartition(".")[2], None)
     overridden = frozenset(k for k, v in overrides.items() if v is not None)
     t = Table(data, source, "", overridden, known=PRESET_KEYS)
 
-    jar = load_jar(t.get("jar", kind=str), t.where("jar"), path.parent)
+    # a jar file named on the command line is relative to the current folder, in a preset to the preset's
+    jar = load_jar(t.get("jar", kind=str), t.where("jar"), None if t.where("jar") == "command line" else path.parent)
     bt = t.table("balls", known=BALLS_KEYS)
     material = load_material(bt.get("material", kind=str), source)
-    balls = Balls(
-        bt.get("count", kind=int, **RANGES["balls.count"].bounds),
-        material,
-        bt.get("radius_mm", lo=0, lo_open=True, hi=0.5e3 * min(jar.radius, jar.height)) * 1e-3,
-    )
+    radius = bt.get("radius_mm", lo=0, lo_open=True, hi=0.5e3 * min(jar.radius, jar.height)) * 1e-3
+    count, count_key, notes = charge.ball_count(bt, jar, radius)
+    balls = Balls(count, material, radius)
     bt.done()
-    _check_fill(balls, jar, bt.where("count"), bt.where("radius_mm"), placed=t.has("initial_positions"))
+    _check_fill(balls, jar, bt.where(count_key), bt.where("radius_mm"), placed=t.has("initial_positions"))
+    pt = t.table("powder", required=False, known=POWDER_KEYS)
+    powder = None
+    if pt is not None:
+        powder = charge.read_powder(pt, balls.count * balls.mass)
+        pt.done()
 
     pair = t.get("pair", kind=str)
     pair_base = Path.cwd() if t.where("pair") == "command line" else path.parent
@@ -172,12 +189,13 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
         init = load_positions(t.get("initial_positions", kind=str), path.parent, balls, jar, source)
     t.done()
     measured = contact_table(contact)[0].get("ball_radius_mm")
-    notes = (rules.ball_size_note(balls.radius, measured * 1e-3 if isinstance(measured, (int, float)) else None, contact),
-             rules.start_up_note(analysis_start, duration, ramp_time))
-    warnings = [n for n in notes if n]
+    checks = (rules.ball_size_note(balls.radius, measured * 1e-3 if isinstance(measured, (int, float)) else None, contact),
+              rules.start_up_note(analysis_start, duration, ramp_time))
+    warnings = [*notes, *(n for n in checks if n)]
     return Preset(
         source, jar, balls, pair, friction, ball_ball, ball_wall, drive, plate_radius,
-        duration, analysis_start, dt, is_auto, seed, rate, gravity, init, wall_friction, tuple(warnings),
+        duration, analysis_start, dt, is_auto, seed, rate, gravity, init, wall_friction, powder=powder,
+        warnings=tuple(warnings),
     )
 
 
@@ -204,8 +222,9 @@ def _check_fill(balls: Balls, jar: Jar, source, radius_source, placed=False):
     larger than the fillets would touch both walls of a corner while the side-wall
     SDF reports only the nearer: refuse it."""
     fill = balls.count * 4.0 / 3.0 * math.pi * balls.radius**3 / jar.volume
-    if fill > 0.45 and not placed:
-        raise ConfigError(source, "balls.count", balls.count, f"balls fill {fill:.0%} of the jar; at most 45% can be placed at random")
+    if fill > charge.MAX_RANDOM_FILL and not placed:
+        raise ConfigError(source, "balls.count", balls.count,
+                          f"balls fill {fill:.0%} of the jar; at most {charge.MAX_RANDOM_FILL:.0%} can be placed at random")
     if 2 * balls.radius >= jar.height or balls.radius >= jar.radius:
         raise ConfigError(radius_source, "balls.radius_mm", balls.radius * 1e3, "balls must fit in the jar")
     if len(jar.profile.pieces) > 1 and balls.radius > jar.fillet:

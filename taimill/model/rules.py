@@ -30,6 +30,14 @@ def one_jar_speed(source, ratio, jar_rpm, *, options: bool = False):
     raise ConfigError(source, "jar_rpm", jar_rpm, "give either ratio or jar_rpm, not both")
 
 
+def one_of_two(source, key: str, value, other: str, other_value):
+    """Two keys that fix one quantity (balls.count and balls.filling; the options --balls
+    and --filling): give one, not both. None: not given."""
+    if value is None or other_value is None:
+        return
+    raise ConfigError(source, key, value, f"give either {other} ({other_value!r}) or {key}, not both")
+
+
 def jar_speed_fits(source, key: str, value, drive):
     """One limit on the jar's speed however it is given: ω = w − Ω (relative to the
     plate) within RANGES["jar_rpm"], also when the jar's speed came as K = `ratio`

@@ -351,12 +351,13 @@ class LiveMill:
             self._start(dataclasses.replace(p, dt=rules.running_dt(p, p.drive.plate_omega, p.drive.jar_spin, self.dt_fixed)))
 
     def rebuilt(self, *, jar: str | None = None, balls: int | None = None) -> Preset:
-        """The preset of a new jar (name in jars/ or path) and/or ball count with the
+        """The preset of a new jar (a bundled name or a path) and/or ball count with the
         current speeds and friction, validated (ConfigError); nothing changes yet."""
         p = self.preset
         if balls is not None:
             check("balls", balls)
-        over = {**self.overrides, "jar": jar or self.overrides.get("jar"), "balls.count": balls or p.balls.count}
+        over = {**self.overrides, "jar": jar or self.overrides.get("jar"), "balls.count": balls or p.balls.count,
+                "balls.filling": None}  # the count as it is now, whether the preset gave a count or a filling
         try:
             new = load_preset(p.source, over)
         except ConfigError as err:

@@ -91,7 +91,7 @@ def overrides(a) -> dict:
     dt = dt_option(a.dt)
     given = {
         "ratio": a.ratio, "jar_rpm": a.jar_rpm, "plate_rpm": a.plate_rpm, "pair": a.pair,
-        "jar": a.jar, "balls.count": a.balls, "seed": a.seed, "duration": getattr(a, "duration", None), "dt": dt,
+        "jar": a.jar, "mill": a.mill, "jar_volume_ml": a.jar_volume, "balls.count": a.balls, "seed": a.seed, "duration": getattr(a, "duration", None), "dt": dt,
         "law": a.law, "analysis_start": getattr(a, "analysis_start", None),
     }
     return {k: v for k, v in given.items() if k not in LIVE_IGNORED or hasattr(a, k)}
@@ -105,6 +105,8 @@ def add_overrides(p, live: bool = False):
     g.add_argument("--plate-rpm", type=number, help="Ω (rpm, not 0)")
     g.add_argument("--pair", type=name_text, help="friction pair, e.g. steel-fluorite, or a pair file NAME.toml")
     g.add_argument("--jar", type=name_text, help="jar name (jars/NAME.toml) or path")
+    g.add_argument("--mill", type=name_text, help="planetary mill: a name (`taimill mills`) or a mill file NAME.toml (default: the preset's, else fritsch-p4)")
+    g.add_argument("--jar-volume", type=integer, metavar="ML", help="the mill's bowl of this volume (ml) instead of --jar")
     g.add_argument("--balls", type=integer, help="number of balls")
     g.add_argument("--seed", type=integer, help="seed of the random ball placement (integer ≥ 0; default: the preset's, else 0)")
     if not live:

@@ -20,6 +20,8 @@ from taimill.model.contact.registry import NAMES as LAW_NAMES
 from taimill.model.contact_sets import NormalLaw, contact_laws
 from taimill.model.drive import Drive
 from taimill.model.jars import Jar, load_jar
+from taimill.model import mills
+from taimill.model.mills import Mill, load_mill
 from taimill.model.materials import FRICTION_KEYS, Balls, Friction, load_friction, load_material, read_friction
 from taimill.model.positions import load_positions
 from taimill.model.ranges import RANGES
@@ -30,7 +32,7 @@ GRAVITY = 9.81  #: m/s²
 # Contact kinds a preset may give its own friction pair and tuning (a coated jar: ball-wall only).
 KINDS = ("ball_ball", "ball_wall")
 # The keys of each kind of table (unknown keys are errors, reported with the nearest known one)
-PRESET_KEYS = ("jar", "pair", "plate_rpm", "ratio", "jar_rpm", "duration", "analysis_start", "dt", "seed", "law",
+PRESET_KEYS = ("mill", "jar", "jar_volume_ml", "pair", "plate_rpm", "ratio", "jar_rpm", "duration", "analysis_start", "dt", "seed", "law",
                "initial_positions", "ramp_time", "plate_radius_mm", "gravity", "balls", "outputs", "friction",
                *(f"pair_{k}" for k in KINDS), *(f"friction_{k}" for k in KINDS))
 BALLS_KEYS = ("count", "material", "radius_mm")
@@ -62,6 +64,7 @@ class Preset:
     #: one line each, for the user before the run starts: numbers that are estimates or
     #: assumptions, implausible but allowed values (the loader appends; cli prints them)
     warnings: tuple[str, ...] = field(default=(), compare=False)
+    mill: Mill | None = None  #: the planetary mill (its gear, plate speeds, R_p unless the preset gives plate_radius_mm)
 
     @property
     def frictions(self) -> tuple[Friction, Friction]:
@@ -70,9 +73,16 @@ class Preset:
 
     def as_dict(self) -> dict:
         """Resolved configuration as plain JSON-able data (for stores and summaries);
-        the drive's speeds are top-level keys in every form (see Drive.as_dict)."""
-        d = dataclasses.asdict(dataclasses.replace(self, initial_positions=None))
+        the drive's speeds are top-level keys in every form (see Drive.as_dict). `mill`
+        is the mill's own data (Mill.as_dict: name, maker, model, stations, its R_p as
+        plate_radius_mm, gear, plate speeds, bowls); the `plate_radius` in use is the
+        mill's unless the preset's plate_radius_mm overrides it (`plate_radius_from`:
+        "mill" or "preset")."""
+        d = dataclasses.asdict(dataclasses.replace(self, initial_positions=None, mill=None))
         del d["drive"], d["warnings"]
+        if self.mill is not None:
+            d["mill"] = self.mill.as_dict()
+            d["plate_radius_from"] = "mill" if self.plate_radius == self.mill.plate_radius else "preset"
         x = self.initial_positions
         if x is not None:  # inline for a few balls; the trajectory's first frame holds them all anyway
             d["initial_positions"] = x.tolist() if len(x) <= INLINE_POSITIONS else f"{len(x)} ball centres: the trajectory's first frame"
@@ -99,10 +109,16 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
         target[leaf] = value
         if key in ("ratio", "jar_rpm"):
             data.pop("jar_rpm" if key == "ratio" else "ratio", None)
+        if key in ("jar", "jar_volume_ml"):
+            data.pop("jar_volume_ml" if key == "jar" else "jar", None)
     overridden = frozenset(k for k, v in overrides.items() if v is not None)
     t = Table(data, source, "", overridden, known=PRESET_KEYS)
 
-    jar = load_jar(t.get("jar", kind=str), t.where("jar"), path.parent)
+    mill_src = t.where("mill")
+    mill = load_mill(t.get("mill", mills.DEFAULT, kind=str), mill_src, Path.cwd() if mill_src == "command line" else path.parent)
+    warnings: list[str] = []
+    jar_name, jar_base = _jar_name(t, mill, warnings), path.parent
+    jar = load_jar(jar_name, t.where("jar_volume_ml" if t.has("jar_volume_ml") else "jar"), jar_base)
     bt = t.table("balls", known=BALLS_KEYS)
     material = load_material(bt.get("material", kind=str), source)
     balls = Balls(
@@ -127,15 +143,23 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     law = t.get("law", None, allowed=LAW_NAMES)
     ball_ball, ball_wall = contact_laws(contact, law, balls, jar, source)
 
-    plate_rpm = t.get("plate_rpm", **RANGES["plate_rpm"].bounds)
+    r = mill.plate_range
+    plate_rpm = t.get("plate_rpm", **(r.bounds if mill.plate_rpm_max is None else {}))
     if plate_rpm == 0:
-        r = RANGES["plate_rpm"]
         raise ConfigError(t.where("plate_rpm"), "plate_rpm", plate_rpm, f"allowed range [{r.lo:g}, 0) or (0, {r.hi:g}] {r.unit}: "
                           "the speed ratio K = ω/Ω + 1 is undefined for a plate at rest")
+    rules.plate_speed_fits(t.where("plate_rpm"), "plate_rpm", plate_rpm, mill)
     rules.one_jar_speed(t.where("jar_rpm"), data.get("ratio"), data.get("jar_rpm"))
     jar_key = "jar_rpm" if t.has("jar_rpm") else "ratio"
-    jar_speed = t.get(jar_key, **RANGES[jar_key].bounds)
-    plate_radius = t.get("plate_radius_mm", 125.0, lo=0, lo_open=True, hi=2000) * 1e-3
+    given = jar_key if t.has(jar_key) else None
+    if mill.gear.kind == "fixed":  # K from the gear; a given jar speed is refused
+        jar_key, jar_speed = "ratio", rules.gear_ratio(t.where(given) if given else source, given, data.get(given), mill)
+    else:
+        if given is None and mill.gear.kind == "set":
+            rules.gear_ratio(source, None, None, mill)
+        jar_speed = t.get(jar_key, **RANGES[jar_key].bounds)
+    plate_radius_mm = t.get("plate_radius_mm", None, lo=0, lo_open=True, hi=2000)
+    plate_radius = mill.plate_radius if plate_radius_mm is None else plate_radius_mm * 1e-3
 
     duration = t.get("duration", lo=0, lo_open=True, hi=36000)
     if "duration" in overridden and "analysis_start" not in overridden and data.get("analysis_start", 0) >= duration:
@@ -147,6 +171,9 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     ramp_time = t.get("ramp_time", 1.0, **(RANGES["ramp_time"].bounds | {"hi": duration}))
     drive = Drive.from_rpm(plate_rpm, **{jar_key: jar_speed}, ramp_time=ramp_time)
     rules.jar_speed_fits(t.where(jar_key), jar_key, jar_speed, drive)
+    if mill.gear.kind != "fixed":
+        rules.gear_ratio(t.where(jar_key), jar_key, jar_speed, mill, drive)
+    warnings += _estimates_in_use(mill, plate_radius_mm is None)
     gravity = t.get("gravity", GRAVITY, lo=0, hi=1000)
     seed = t.get("seed", 0, kind=int, lo=0, hi=2**63 - 1)
 
@@ -169,11 +196,33 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     if t.has("initial_positions"):
         init = load_positions(t.get("initial_positions", kind=str), path.parent, balls, jar, source)
     t.done()
-    warnings: list[str] = []
     return Preset(
         source, jar, balls, pair, friction, ball_ball, ball_wall, drive, plate_radius,
-        duration, analysis_start, dt, is_auto, seed, rate, gravity, init, wall_friction, tuple(warnings),
+        duration, analysis_start, dt, is_auto, seed, rate, gravity, init, wall_friction, tuple(warnings), mill,
     )
+
+
+def _jar_name(t: Table, mill: Mill, warnings: list) -> str:
+    """The jar: `jar` (a name or jar file), or the mill's bowl of `jar_volume_ml` (its
+    maker's bowl file; its estimated sizes are added to warnings)."""
+    if not t.has("jar_volume_ml"):
+        return t.get("jar", kind=str)
+    if t.has("jar"):
+        raise ConfigError(t.where("jar_volume_ml"), "jar_volume_ml", t.data["jar_volume_ml"], "give either jar or jar_volume_ml, not both")
+    volume = t.get("jar_volume_ml", kind=int, lo=1, hi=100_000)
+    path = mills.bowl_path(mill, volume, t.where("jar_volume_ml"))
+    notes = read_toml(path, "bowl", t.where("jar_volume_ml")).get("estimates") if not files.missing(path) else None
+    if isinstance(notes, dict) and notes:
+        warnings.append(f"bowl {path.stem} of mill {mill.name}: {', '.join(notes)} are estimates ({next(iter(notes.values()))})")
+    return str(path)
+
+
+def _estimates_in_use(mill: Mill, radius_from_mill: bool) -> list[str]:
+    """One warning per estimated mill number the run uses: R_p (unless the preset gives
+    its own), a fixed gear or set of gears, the plate speed limits."""
+    keys = (["plate_radius_mm"] if radius_from_mill else []) + {"fixed": ["gear_ratio"], "set": ["gear_ratios"]}.get(mill.gear.kind, [])
+    keys += ["plate_rpm_min", "plate_rpm_max"]
+    return [f"mill {mill.name}: {o.key} is an estimate ({o.text})" for k in keys if (o := mill.origin(k)) and o.estimate]
 
 
 def _kind_friction(t: Table, kind: str, friction: Friction, contact: str, path: Path, pair_base: Path) -> Friction:

@@ -207,8 +207,7 @@ def _jar_name(t: Table, mill: Mill, warnings: list) -> str:
     maker's bowl file; its estimated sizes are added to warnings)."""
     if not t.has("jar_volume_ml"):
         return t.get("jar", kind=str)
-    if t.has("jar"):
-        raise ConfigError(t.where("jar_volume_ml"), "jar_volume_ml", t.data["jar_volume_ml"], "give either jar or jar_volume_ml, not both")
+    rules.one_jar(t.where("jar_volume_ml"), t.data.get("jar"), t.data["jar_volume_ml"])
     volume = t.get("jar_volume_ml", kind=int, lo=1, hi=100_000)
     path = mills.bowl_path(mill, volume, t.where("jar_volume_ml"))
     notes = read_toml(path, "bowl", t.where("jar_volume_ml")).get("estimates") if not files.missing(path) else None

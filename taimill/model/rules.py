@@ -30,6 +30,13 @@ def one_jar_speed(source, ratio, jar_rpm, *, options: bool = False):
     raise ConfigError(source, "jar_rpm", jar_rpm, "give either ratio or jar_rpm, not both")
 
 
+def one_jar(source, jar, volume_ml):
+    """The jar is given as a jar (`jar`: a name or file) or as the mill's bowl of a volume
+    (`jar_volume_ml`), not both. None: not given."""
+    if jar is not None and volume_ml is not None:
+        raise ConfigError(source, "jar_volume_ml", volume_ml, "give either jar or jar_volume_ml, not both")
+
+
 def jar_speed_fits(source, key: str, value, drive):
     """One limit on the jar's speed however it is given: ω = w − Ω (relative to the
     plate) within RANGES["jar_rpm"], also when the jar's speed came as K = `ratio`

@@ -78,8 +78,7 @@ def test_the_thesis_mill_is_the_default_with_its_sourced_radius():
 
 def test_maker_gear_is_the_bowl_speed_relative_to_the_sun_wheel():
     # "1:-2": per turn of the sun wheel the bowl turns twice backwards relative to it, so
-    # its absolute spin is -1 turn: K = ω/Ω + 1 = -1 (reading -2 as K would give 53.6 W
-    # instead of 33.0 W at 800 rpm: the wrong mill)
+    # its absolute spin is -1 turn: K = ω/Ω + 1 = -1 (reading -2 as K is another mill)
     assert k_from_maker(-2.0) == -1.0 and maker_from_k(-1.0) == -2.0
     assert k_from_maker(-1.82) == pytest.approx(-0.82) and k_from_maker(-1.0) == 0.0
     assert load_mill("retsch-pm100").gear.k_text == "K = -1"
@@ -98,7 +97,7 @@ def test_pm100_kinematics_match_a_hand_calculation(tmp_path):
     config = p.as_dict()
     assert config["mill"]["name"] == "retsch-pm100" and config["mill"]["stations"] == 1
     assert config["plate_radius_from"] == "mill"
-    assert any("plate_radius_mm is an estimate" in w for w in p.warnings)
+    assert any("R_p = 70.5 mm is an estimate" in w for w in p.warnings)
     assert any("bowl retsch-80ml" in w for w in p.warnings)
 
 
@@ -106,7 +105,7 @@ def test_a_preset_plate_radius_overrides_the_mill(tmp_path):
     text = preset_text("retsch-pm100", 400).replace("duration", "plate_radius_mm = 80\nduration")
     p = load_preset(write_preset(tmp_path, text))
     assert p.plate_radius == pytest.approx(0.080) and p.as_dict()["plate_radius_from"] == "preset"
-    assert not any("plate_radius_mm is an estimate" in w for w in p.warnings)
+    assert not any("R_p = 70.5 mm is an estimate" in w for w in p.warnings)
 
 
 def test_fixed_gear_refuses_a_jar_speed_from_file_or_command_line(tmp_path):
@@ -190,6 +189,30 @@ def test_mills_lists_every_mill_and_marks_estimates():
     assert " 125 " in p4 and "≈125" not in p4  # the thesis' figure is sourced
     code, out, err = main("mills", "retsch-pm100")
     assert code == 0 and "estimate: effective sun-wheel diameter 141 mm" in out
+
+
+def test_a_live_mill_keeps_its_mills_limits(tmp_path):
+    from taimill.runs.live import LiveMill
+
+    live = LiveMill(load_preset(write_preset(tmp_path, preset_text("fritsch-p7-classic", 400, volume=45)), {"ramp_time": 0.02}))
+    live.set_speeds(plate_rpm=700)
+    assert live.ratio == pytest.approx(-1.0) and live.plate_rpm == pytest.approx(700)
+    with pytest.raises(ConfigError, match=r"TUI: plate_rpm = 900: allowed range \[0, 800\] rpm"):
+        live.set_speeds(plate_rpm=900)
+    with pytest.raises(ConfigError, match=r"TUI: ratio = -2.6: fritsch-p7-classic has a fixed gear 1:-2 \(K = -1\); ratio cannot be set"):
+        live.set_speeds(ratio=-2.6)
+    with pytest.raises(ConfigError, match=r"TUI: plate_rpm = 50: allowed range \[100, 800\] rpm on the mill fritsch-p7-classic"):
+        live.set_speeds(plate_rpm=50)
+    assert live.plate_rpm == pytest.approx(700)  # refused changes change nothing
+
+
+def test_mills_are_a_sweep_axis(tmp_path):
+    from taimill.runs.sweep import Request, plan
+
+    path = write_preset(tmp_path, preset_text("retsch-pm100", 400))
+    points = plan(Request(str(path), {}, {"mill": ["retsch-pm100", "fritsch-p7-premium"]}))
+    assert [p["values"]["mill"] for p in points] == ["retsch-pm100", "fritsch-p7-premium"]
+    assert [p["preset"].plate_radius for p in points] == [load_mill("retsch-pm100").plate_radius, 0.070]
 
 
 @pytest.mark.parametrize("name", SHIPPED)

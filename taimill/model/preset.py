@@ -212,7 +212,7 @@ def _jar_name(t: Table, mill: Mill, warnings: list) -> str:
     path = mills.bowl_path(mill, volume, t.where("jar_volume_ml"))
     notes = read_toml(path, "bowl", t.where("jar_volume_ml")).get("estimates") if not files.missing(path) else None
     if isinstance(notes, dict) and notes:
-        warnings.append(f"bowl {path.stem} of mill {mill.name}: {', '.join(notes)} are estimates ({next(iter(notes.values()))})")
+        warnings.append(f"bowl {path.stem} of mill {mill.name}: {', '.join(notes)} estimated, not measured (see {path})")
     return str(path)
 
 
@@ -221,7 +221,11 @@ def _estimates_in_use(mill: Mill, radius_from_mill: bool) -> list[str]:
     its own), a fixed gear or set of gears, the plate speed limits."""
     keys = (["plate_radius_mm"] if radius_from_mill else []) + {"fixed": ["gear_ratio"], "set": ["gear_ratios"]}.get(mill.gear.kind, [])
     keys += ["plate_rpm_min", "plate_rpm_max"]
-    return [f"mill {mill.name}: {o.key} is an estimate ({o.text})" for k in keys if (o := mill.origin(k)) and o.estimate]
+    shown = {"plate_radius_mm": f"R_p = {mill.plate_radius * 1e3:g} mm", "gear_ratio": f"gear {mill.gear.text} ({mill.gear.k_text})",
+             "gear_ratios": f"gears {mill.gear.text} ({mill.gear.k_text})",
+             "plate_rpm_min": f"lowest plate speed {mill.plate_rpm_min or 0:g} rpm", "plate_rpm_max": f"highest plate speed {mill.plate_rpm_max or 0:g} rpm"}
+    return [f"mill {mill.name}: {shown[k]} is an estimate, not a sourced figure (`taimill mills {mill.name}` says whence)"
+            for k in keys if mill.is_estimate(k)]
 
 
 def _kind_friction(t: Table, kind: str, friction: Friction, contact: str, path: Path, pair_base: Path) -> Friction:

@@ -118,6 +118,17 @@ class Mill:
         hi = self.plate_rpm_max
         return Range(-hi, hi, "rpm", live=(0.0, hi))
 
+    def estimates_in_use(self, radius_from_mill: bool = True) -> list[str]:
+        """One warning line per estimated number a run on this mill uses: R_p (unless
+        the preset gives its own), a fixed gear or set of gears, the plate speed limits."""
+        g = self.gear
+        shown = {"plate_radius_mm": f"R_p = {self.plate_radius * 1e3:g} mm", "gear_ratio": f"gear {g.text} ({g.k_text})",
+                 "gear_ratios": f"gears {g.text} ({g.k_text})", "plate_rpm_min": f"lowest plate speed {self.plate_rpm_min or 0:g} rpm",
+                 "plate_rpm_max": f"highest plate speed {self.plate_rpm_max or 0:g} rpm"}
+        used = [k for k in shown if k != "plate_radius_mm" or radius_from_mill]
+        return [f"mill {self.name}: {shown[k]} is an estimate, not a sourced figure (`taimill mills {self.name}` says whence)"
+                for k in used if self.is_estimate(k)]
+
     def as_dict(self) -> dict:
         """Plain data for a run's resolved configuration."""
         return {"name": self.name, "maker": self.maker, "model": self.model, "stations": self.stations,
@@ -193,6 +204,14 @@ def _list(t: Table, key: str):
     """t's value at key ([] if not set), for the caller to check it is a list of what it needs."""
     t.used.add(key)
     return t.data.get(key, [])
+
+
+def bowl_estimates(mill: Mill, path: Path, source) -> list[str]:
+    """A warning line if the bowl file at path gives estimated sizes ([estimates])."""
+    notes = read_toml(path, "bowl", source).get("estimates") if not files.missing(path) else None
+    if not isinstance(notes, dict) or not notes:
+        return []
+    return [f"bowl {path.stem} of mill {mill.name}: {', '.join(notes)} estimated, not measured (see {path})"]
 
 
 def bowl_path(mill: Mill, volume_ml, source="command line", key="jar_volume_ml") -> Path:

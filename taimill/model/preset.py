@@ -117,8 +117,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     mill_src = t.where("mill")
     mill = load_mill(t.get("mill", mills.DEFAULT, kind=str), mill_src, Path.cwd() if mill_src == "command line" else path.parent)
     warnings: list[str] = []
-    jar_name, jar_base = _jar_name(t, mill, warnings), path.parent
-    jar = load_jar(jar_name, t.where("jar_volume_ml" if t.has("jar_volume_ml") else "jar"), jar_base)
+    jar = load_jar(_jar_name(t, mill, warnings), t.where("jar_volume_ml" if t.has("jar_volume_ml") else "jar"), path.parent)
     bt = t.table("balls", known=BALLS_KEYS)
     material = load_material(bt.get("material", kind=str), source)
     balls = Balls(
@@ -173,7 +172,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     rules.jar_speed_fits(t.where(jar_key), jar_key, jar_speed, drive)
     if mill.gear.kind != "fixed":
         rules.gear_ratio(t.where(jar_key), jar_key, jar_speed, mill, drive)
-    warnings += _estimates_in_use(mill, plate_radius_mm is None)
+    warnings += mill.estimates_in_use(radius_from_mill=plate_radius_mm is None)
     gravity = t.get("gravity", GRAVITY, lo=0, hi=1000)
     seed = t.get("seed", 0, kind=int, lo=0, hi=2**63 - 1)
 
@@ -210,22 +209,8 @@ def _jar_name(t: Table, mill: Mill, warnings: list) -> str:
     rules.one_jar(t.where("jar_volume_ml"), t.data.get("jar"), t.data["jar_volume_ml"])
     volume = t.get("jar_volume_ml", kind=int, lo=1, hi=100_000)
     path = mills.bowl_path(mill, volume, t.where("jar_volume_ml"))
-    notes = read_toml(path, "bowl", t.where("jar_volume_ml")).get("estimates") if not files.missing(path) else None
-    if isinstance(notes, dict) and notes:
-        warnings.append(f"bowl {path.stem} of mill {mill.name}: {', '.join(notes)} estimated, not measured (see {path})")
+    warnings += mills.bowl_estimates(mill, path, t.where("jar_volume_ml"))
     return str(path)
-
-
-def _estimates_in_use(mill: Mill, radius_from_mill: bool) -> list[str]:
-    """One warning per estimated mill number the run uses: R_p (unless the preset gives
-    its own), a fixed gear or set of gears, the plate speed limits."""
-    keys = (["plate_radius_mm"] if radius_from_mill else []) + {"fixed": ["gear_ratio"], "set": ["gear_ratios"]}.get(mill.gear.kind, [])
-    keys += ["plate_rpm_min", "plate_rpm_max"]
-    shown = {"plate_radius_mm": f"R_p = {mill.plate_radius * 1e3:g} mm", "gear_ratio": f"gear {mill.gear.text} ({mill.gear.k_text})",
-             "gear_ratios": f"gears {mill.gear.text} ({mill.gear.k_text})",
-             "plate_rpm_min": f"lowest plate speed {mill.plate_rpm_min or 0:g} rpm", "plate_rpm_max": f"highest plate speed {mill.plate_rpm_max or 0:g} rpm"}
-    return [f"mill {mill.name}: {shown[k]} is an estimate, not a sourced figure (`taimill mills {mill.name}` says whence)"
-            for k in keys if mill.is_estimate(k)]
 
 
 def _kind_friction(t: Table, kind: str, friction: Friction, contact: str, path: Path, pair_base: Path) -> Friction:

@@ -101,7 +101,8 @@ class Controls(Vertical):
             yield Select([(p, p) for p in pairs_for(self.values["pair"])], value=self.values["pair"], allow_blank=False, id="pair", compact=True)
         with Horizontal(classes="row"):
             yield Label("jar")
-            yield Select([(j, j) for j in jar_names()], value=self.values["jar"], allow_blank=False, id="jar", compact=True)
+            jars = dict.fromkeys([*jar_names(), self.values["jar"]])  # also a jar file or a mill's bowl in use
+            yield Select([(j, j) for j in jars], value=self.values["jar"], allow_blank=False, id="jar", compact=True)
 
     def on_mount(self):
         self._mark_held()

@@ -154,7 +154,7 @@ def with_regimes(rows: list[dict]) -> tuple[list[dict], list[dict]]:
     from taimill.analysis.sweep import CURVE_COLUMNS, regime_fractions
 
     def key(r):  # K rounded as regime_fractions rounds it
-        return (*(r[c] for c in CURVE_COLUMNS), float(np.round(float(r["ratio"]), 10)))
+        return (*(r.get(c, "") for c in CURVE_COLUMNS), float(np.round(float(r["ratio"]), 10)))
 
     groups = regime_fractions({c: [r.get(c, "") for r in rows] for c in (*CURVE_COLUMNS, "ratio", "regime")})
     by_key = {key(g): g for g in groups}
@@ -188,5 +188,5 @@ def _cell(v, scale, fmt) -> str:
 
 
 def peak_line(p: dict) -> str:
-    curve = ", ".join(f"{k} {p[k]}" for k in ("jar", "balls", "pair", "plate_rpm"))
+    curve = ", ".join(f"{k} {p[k]}" for k in ("mill", "jar", "balls", "pair", "plate_rpm") if k in p)
     return f"maximum of {p['metric']} ({curve}): K = {p['ratio']:.3f}, {p['value']:.4g} ({p['method']})"

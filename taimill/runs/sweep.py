@@ -292,7 +292,7 @@ def _py(v):
 
 
 def curve_of(row: dict) -> tuple:
-    return tuple(row[k] for k in CURVE_COLUMNS)
+    return tuple(row.get(k, "") for k in CURVE_COLUMNS)  # rows from before mills have no mill
 
 
 def run_sweep(req: Request, store: SweepStore | None = None, **run_kw) -> tuple[list[dict], list[dict]]:

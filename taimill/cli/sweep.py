@@ -171,6 +171,9 @@ def regime_table(groups: list[dict]) -> str:
 
 
 def table(rows: list[dict], columns=COLUMNS) -> str:
+    """The rows as a text table of the columns they have; a mill column where mills differ."""
+    if len({r.get("mill") for r in rows}) > 1:
+        columns = (*columns[:1], ("mill", "mill", None, "s"), *columns[1:])
     cols = [c for c in columns if any(c[0] in r for r in rows)]
     cells = [[_cell(r.get(k), scale, fmt) for k, _, scale, fmt in cols] for r in rows]
     widths = [max([len(h)] + [len(c[i]) for c in cells]) for i, (_, h, _, _) in enumerate(cols)]

@@ -63,7 +63,7 @@ def plate_speed_fits(source, key: str, plate_rpm, mill):
     lo = mill.plate_rpm_min
     if r.lo <= plate_rpm <= r.hi and (lo is None or plate_rpm == 0 or abs(plate_rpm) >= lo):
         return plate_rpm
-    if mill.plate_rpm_max is None:
+    if mill.plate_rpm_max is None and lo is None:
         raise ConfigError(source, key, plate_rpm, f"allowed range [{r.lo:g}, {r.hi:g}] {r.unit}")
     raise ConfigError(source, key, plate_rpm, f"allowed range [{lo or 0:g}, {r.hi:g}] {r.unit} on the mill {mill.name} "
                       "(a negative speed is its mirror image)")

@@ -143,7 +143,7 @@ def test_plate_speed_limits_are_the_mills(tmp_path):
         load_preset(classic)
     with pytest.raises(ConfigError, match=r"plate_rpm = 1100.0: allowed range \[100, 800\] rpm on the mill fritsch-p7-classic"):
         load_preset(path, {"mill": "fritsch-p7-classic", "plate_rpm": 1100.0})
-    with pytest.raises(ConfigError, match=r"plate_rpm = 50.0: allowed range \[100, 1100\] rpm"):
+    with pytest.raises(ConfigError, match=r"plate_rpm = 50.0: allowed range \[150, 1100\] rpm"):
         load_preset(path, {"plate_rpm": 50.0})
 
 

@@ -4,9 +4,10 @@ the maker's bowls, read from taimill/data/mills/NAME.toml or a user's mill file,
 number with its source or marked as an estimate (docs/mills.md).
 
 Gear convention: makers write the gear as "1:−2" (sun wheel : bowl), the bowl's speed
-*relative to the sun wheel* per turn of the sun wheel, r = ω/Ω. taimill's speed ratio
-is the bowl's absolute spin over Ω, K = ω/Ω + 1 (taimill.model.drive), so K = r + 1:
-1:−2 is K = −1 (`k_from_maker`)."""
+*relative to the sun wheel* per turn of the sun wheel, r = ω/Ω (Fritsch names it the
+relative transmission ratio, i_relative; docs/mills.md says what was found for each
+maker). taimill's speed ratio is the bowl's absolute spin over Ω, K = ω/Ω + 1
+(taimill.model.drive), so K = r + 1: 1:−2 is K = −1 (`k_from_maker`)."""
 
 from __future__ import annotations
 

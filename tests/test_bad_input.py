@@ -198,6 +198,12 @@ VALUES = [
     ("run --plate-rpm -1000 --ratio -10: jar at 11000 rpm", RUN + ["--plate-rpm", "-1000", "--ratio", "-10"],
      ["ratio", "-10", "allowed range [-2, 4]", "11000 rpm"]),
     ("run --ratio with --jar-rpm", RUN + ["--ratio", "-2", "--jar-rpm", "100"], ["--jar-rpm", "--ratio", "not both"]),
+    # mills: unknown, a fixed gear with a jar speed, a plate speed beyond the mill's, a bowl it does not take
+    ("mills: unknown name", ["mills", "no-such-mill"], ["mill", "no-such-mill", "known mills", "retsch-pm100"]),
+    ("run --mill unknown", RUN + ["--mill", "no-such-mill"], ["mill", "no-such-mill", "known mills"]),
+    ("run --mill fixed gear with the preset's ratio", RUN + ["--mill", "retsch-pm100"],
+     ["ratio", "retsch-pm100 has a fixed gear 1:-2 (K = -1)", "cannot be set"]),
+    ("run --jar-volume the mill lacks", RUN + ["--jar-volume", "33"], ["jar_volume_ml", "33", "fritsch-p4", "80, 250, 500 ml"]),
     ("run --jar-rpm with --ratio", RUN + ["--jar-rpm", "-700", "--ratio", "-2.6"], ["--jar-rpm", "not both"]),
     ("run --balls 0", RUN + ["--balls", "0"], ["balls.count", "[1,"]),
     ("run --balls negative", RUN + ["--balls", "-3"], ["balls.count", "-3"]),

@@ -10,7 +10,8 @@ import math
 import numpy as np
 
 CONFIDENCE = 0.95
-CURVE_COLUMNS = ("jar", "balls", "pair", "plate_rpm")  # table columns telling curves apart
+# table columns telling curves apart (tables of sweeps from before mills have no "mill": read as "")
+CURVE_COLUMNS = ("mill", "jar", "balls", "pair", "plate_rpm")
 REGIMES = ("cascading", "cataracting", "rolling")  # taimill.analysis.regime's labels
 
 
@@ -82,7 +83,7 @@ def regime_fractions(table) -> list[dict]:
     one regime ("unknown" aside): their mean then mixes distinct states of the mill."""
     ks = np.round(np.asarray(table["ratio"], dtype=float), 10)
     labels = [str(v) or "unknown" for v in table["regime"]]
-    curves = list(zip(*(np.asarray(table[c]).tolist() for c in CURVE_COLUMNS)))
+    curves = list(zip(*(np.asarray(table[c]).tolist() if c in table else [""] * len(ks) for c in CURVE_COLUMNS)))
     out = []
     for curve in dict.fromkeys(curves):
         on_curve = np.array([c == curve for c in curves])

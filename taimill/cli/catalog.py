@@ -1,6 +1,7 @@
-"""`taimill presets`, `taimill jars [show NAME | new NAME]`: what can be run (the bundled
-presets, jars and bowls, by name from any folder), the jars drawn, and a cylinder jar
-built from a bowl's volume and diameter."""
+"""`taimill presets`, `taimill jars [show NAME | new NAME]`, `taimill mills [NAME]`: what can
+be run (the bundled presets, jars, bowls and mills, by name from any folder), the jars
+drawn, a cylinder jar built from a bowl's volume and diameter, and the planetary mills
+with where each of their numbers comes from."""
 
 from __future__ import annotations
 
@@ -38,6 +39,9 @@ def register(sub) -> None:
     jn.add_argument("--material", default="aisi-304", help="wall material of taimill/data/materials.toml (default aisi-304)")
     jn.add_argument("--out", type=path_text, help="jar file to write, .toml (default NAME.toml in the current folder)")
     jn.add_argument("--overwrite", action="store_true", help="replace an existing --out jar file written by jars new")
+    m = sub.add_parser("mills", help="list planetary mills (R_p, gear, speeds, bowls; * marks estimates); 'mills NAME' shows one with sources")
+    m.add_argument("name", nargs="?", type=name_text, help="mill name or mill file NAME.toml")
+    m.set_defaults(fn=cmd_mills)
 
 
 def first_sentence(path) -> str:
@@ -168,4 +172,60 @@ def cmd_jars_new(a) -> int:
     jar = load_jar(str(out), "command line")
     print(f"{out}: {jar.description}, height {jar.height * 1e3:.4g} mm, volume {jar.volume * 1e6:.4g} ml; "
           f"use it with --jar {out} or jar = \"{out}\" in a preset")
+    return 0
+
+
+def _marked(mill, key: str, text: str) -> str:
+    """A mill's number as shown: "≈70.5*" if it is an estimate."""
+    return f"≈{text}*" if mill.is_estimate(key) else text
+
+
+def _speeds(mill) -> str:
+    lo, hi = mill.plate_rpm_min, mill.plate_rpm_max
+    if hi is None:  # the global sanity cap applies
+        r = mill.plate_range
+        return f"unknown (cap {r.lo:g} to {r.hi:g})"
+    return _marked(mill, "plate_rpm_min", f"{lo or 0:g}") + "-" + _marked(mill, "plate_rpm_max", f"{hi:g}")
+
+
+def _gear(mill) -> str:
+    key = "gear_ratios" if mill.gear.kind == "set" else "gear_ratio"
+    text = f"{mill.gear.text} ({mill.gear.k_text})" if mill.gear.kind != "free" else mill.gear.k_text
+    return _marked(mill, key, text) if mill.gear.kind != "free" else text
+
+
+def mill_rows(mill) -> list[tuple[str, str]]:
+    """(label, value as shown) of each of a mill's figures, estimates marked."""
+    return [("maker, model", f"{mill.maker} {mill.model}"),
+            ("R_p mm", _marked(mill, "plate_radius_mm", f"{mill.plate_radius * 1e3:g}")),
+            ("gear (maker, K)", _gear(mill)),
+            ("plate rpm", _speeds(mill)),
+            ("stations", _marked(mill, "stations", f"{mill.stations:d}")),
+            ("bowls ml", _marked(mill, "bowls_ml", ",".join(map(str, mill.bowls_ml)) or "-"))]
+
+
+def cmd_mills(a) -> int:
+    from taimill.model.mills import load_mill, mill_names
+
+    if a.name:
+        mill = load_mill(a.name, "command line", Path.cwd())
+        print(f"{mill.name}: {mill.maker} {mill.model} ({mill.source})")
+        if mill.description:
+            print(f"  {mill.description}")
+        for label, value in mill_rows(mill)[1:]:
+            print(f"  {label:16} {value}")
+        print("where each number comes from:")
+        for o in mill.origins:
+            print(textwrap.fill(f"{'estimate' if o.estimate else 'source'}: {o.text}", 100, initial_indent=f"  {o.key:16} ",
+                                subsequent_indent=" " * 19, break_long_words=False, break_on_hyphens=False))
+        if any(o.estimate for o in mill.origins):
+            print("* estimate: not verified against a source")
+        return 0
+    mills = [load_mill(n, "command line") for n in mill_names()]
+    rows = [("mill", *(label for label, _ in mill_rows(mills[0])))] + [(m.name, *(v for _, v in mill_rows(m))) for m in mills]
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    for r in rows:
+        print("  ".join(v.ljust(w) for v, w in zip(r, widths)).rstrip())
+    if any(o.estimate for m in mills for o in m.origins):
+        print("* estimate: not verified against a source (`taimill mills NAME` says where each number comes from)")
     return 0

@@ -92,8 +92,8 @@ def overrides(a) -> dict:
     dt = dt_option(a.dt)
     given = {
         "ratio": a.ratio, "jar_rpm": a.jar_rpm, "plate_rpm": a.plate_rpm, "pair": a.pair,
-        "jar": a.jar, "balls.count": a.balls, "balls.filling": a.filling, "powder.mass_g": a.powder_mass,
-        "seed": a.seed, "duration": getattr(a, "duration", None), "dt": dt,
+        "jar": a.jar, "mill": a.mill, "jar_volume_ml": a.jar_volume, "balls.count": a.balls, "balls.filling": a.filling,
+        "powder.mass_g": a.powder_mass, "seed": a.seed, "duration": getattr(a, "duration", None), "dt": dt,
         "law": a.law, "analysis_start": getattr(a, "analysis_start", None),
     }
     return {k: v for k, v in given.items() if k not in LIVE_IGNORED or hasattr(a, k)}
@@ -108,6 +108,8 @@ def add_overrides(p, live: bool = False):
     g.add_argument("--pair", type=name_text, help="friction pair, e.g. steel-fluorite, or a pair file NAME.toml")
     g.add_argument("--jar", type=name_text,
                    help="a bundled jar or bowl by name (`taimill jars`), or a jar file NAME.toml (from the current folder)")
+    g.add_argument("--mill", type=name_text, help="planetary mill: a name (`taimill mills`) or a mill file NAME.toml (default: the preset's, else fritsch-p4)")
+    g.add_argument("--jar-volume", type=integer, metavar="ML", help="the mill's bowl of this volume (ml) instead of --jar")
     g.add_argument("--balls", type=integer, help="number of balls; or give --filling, not both")
     g.add_argument("--filling", type=number,
                    help="ball filling degree: the ball bed's bulk volume / the jar's (about 1/3 is usual); sets the ball count")

@@ -38,6 +38,7 @@ def register(subparsers) -> None:
     g.add_argument("--mu-r", help="rolling resistance μ_r of the pair (0: off)")
     g.add_argument("--balls", help="ball counts, e.g. 6,12,24")
     g.add_argument("--jar", help="jars, e.g. CY,HM")
+    g.add_argument("--mill", help="planetary mills (names or mill files), e.g. retsch-pm100,fritsch-p7-premium")
     g.add_argument("--replicas", type=integer, default=1, help="R seeds per point (seed … seed+R-1): mean ± 95%% band")
     g.add_argument("--refine", action="store_true", help="add points around the maximum of --refine-metric")
     g.add_argument("--refine-metric", default="mean_se", choices=REFINE_METRICS, metavar="KEY",
@@ -69,7 +70,7 @@ def request(a):
 
     axes = {}
     for key, opt, kind in (("ratio", "--ratio", float), ("plate_rpm", "--plate-rpm", float), ("pair", "--pair", str),
-                           ("balls.count", "--balls", int), ("jar", "--jar", str), ("pair_ball_wall", "--pair-ball-wall", str),
+                           ("balls.count", "--balls", int), ("jar", "--jar", str), ("mill", "--mill", str), ("pair_ball_wall", "--pair-ball-wall", str),
                            ("friction.mu", "--mu", float), ("friction.mu_r", "--mu-r", float)):
         text = getattr(a, opt[2:].replace("-", "_"))
         if text is not None:
@@ -153,7 +154,7 @@ def with_regimes(rows: list[dict]) -> tuple[list[dict], list[dict]]:
     from taimill.analysis.sweep import CURVE_COLUMNS, regime_fractions
 
     def key(r):  # K rounded as regime_fractions rounds it
-        return (*(r[c] for c in CURVE_COLUMNS), float(np.round(float(r["ratio"]), 10)))
+        return (*(r.get(c, "") for c in CURVE_COLUMNS), float(np.round(float(r["ratio"]), 10)))
 
     groups = regime_fractions({c: [r.get(c, "") for r in rows] for c in (*CURVE_COLUMNS, "ratio", "regime")})
     by_key = {key(g): g for g in groups}
@@ -170,6 +171,9 @@ def regime_table(groups: list[dict]) -> str:
 
 
 def table(rows: list[dict], columns=COLUMNS) -> str:
+    """The rows as a text table of the columns they have; a mill column where mills differ."""
+    if len({r.get("mill") for r in rows}) > 1:
+        columns = (*columns[:1], ("mill", "mill", None, "s"), *columns[1:])
     cols = [c for c in columns if any(c[0] in r for r in rows)]
     cells = [[_cell(r.get(k), scale, fmt) for k, _, scale, fmt in cols] for r in rows]
     widths = [max([len(h)] + [len(c[i]) for c in cells]) for i, (_, h, _, _) in enumerate(cols)]
@@ -187,5 +191,5 @@ def _cell(v, scale, fmt) -> str:
 
 
 def peak_line(p: dict) -> str:
-    curve = ", ".join(f"{k} {p[k]}" for k in ("jar", "balls", "pair", "plate_rpm"))
+    curve = ", ".join(f"{k} {p[k]}" for k in ("mill", "jar", "balls", "pair", "plate_rpm") if k in p)
     return f"maximum of {p['metric']} ({curve}): K = {p['ratio']:.3f}, {p['value']:.4g} ({p['method']})"

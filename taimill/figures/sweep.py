@@ -35,7 +35,7 @@ from taimill.errors import ConfigError
 from taimill.model.files import csv_cells, read_text
 from taimill.analysis.sweep import CURVE_COLUMNS, REGIMES, mean_band, regime_fractions
 
-CURVE_AXES = (("jar", "{}"), ("balls", "{:.0f} balls"), ("pair", "{}"), ("plate_rpm", "Ω = {:g} rpm"))
+CURVE_AXES = (("mill", "{}"), ("jar", "{}"), ("balls", "{:.0f} balls"), ("pair", "{}"), ("plate_rpm", "Ω = {:g} rpm"))
 # file stem, figure title, [(column, panel title)], y label, scale to the plotted unit
 FIGURES = (
     ("mean_se", "Average stress energy per event (thesis Figs 5.1, 5.5)", [("mean_se", "total")], "mean SE (mJ)", 1e3),
@@ -81,10 +81,12 @@ def report_sweep(path, out_dir, fmt: str = "png", overlay=None) -> list[Path]:
 
 
 def curves(table: dict) -> dict[str, np.ndarray]:
-    """Label → row indices, one curve per combination of jar, balls, pair and Ω; the
-    label names only the axes that vary across the sweep."""
-    varying = [(k, f) for k, f in CURVE_AXES if len(set(table[k].tolist())) > 1] or list(CURVE_AXES)
-    keys = [tuple(table[k][i] for k, _ in CURVE_AXES) for i in range(len(table["point"]))]
+    """Label → row indices, one curve per combination of mill, jar, balls, pair and Ω;
+    the label names only the axes that vary across the sweep (a sweep from before mills
+    has no mill column)."""
+    axes = [(k, f) for k, f in CURVE_AXES if k in table]
+    varying = [(k, f) for k, f in axes if len(set(table[k].tolist())) > 1] or [a for a in axes if a[0] != "mill"]
+    keys = [tuple(table[k][i] for k, _ in axes) for i in range(len(table["point"]))]
     out: dict = {}
     for i, key in enumerate(keys):
         label = ", ".join(f.format(table[k][i]) for k, f in varying)
@@ -138,7 +140,7 @@ def _figure(table, title, panels, ylabel, scale, peaks, measured=None):
 
 def regime_groups(table: dict, rows: np.ndarray) -> list[dict]:
     """taimill.analysis.sweep.regime_fractions of the table's `rows` (one curve)."""
-    return regime_fractions({c: np.asarray(table[c])[rows] for c in (*CURVE_COLUMNS, "ratio", "regime")})
+    return regime_fractions({c: np.asarray(table[c])[rows] for c in (*CURVE_COLUMNS, "ratio", "regime") if c in table})
 
 
 def mark_mixed(ax, table, rows, column, scale, color) -> set[str]:

@@ -12,10 +12,12 @@ from pathlib import Path
 from taimill.errors import ConfigError
 from taimill.model import files, geometry
 from taimill.model.materials import load_material
+from taimill.model.provenance import read_origins
 from taimill.model.tables import Table, read_toml
 
 JARS_DIR = files.BUNDLED["jar"][0]  #: the bundled jars (bundled bowls are jars too: files.BUNDLED)
-JAR_KEYS = ("height_mm", "wall_material", "description", "fillet_mm", "profile")
+JAR_KEYS = ("height_mm", "wall_material", "description", "fillet_mm", "profile", "sources", "estimates")
+ORIGIN_KEYS = ("height_mm", "fillet_mm", "radius_mm")  #: numbers of a jar with [sources]/[estimates]; radius: the circle's
 
 
 @dataclass(frozen=True)
@@ -108,6 +110,8 @@ def load_jar(name: str, source="preset", base: Path | None = None) -> Jar:
         prims.append((kind, values))
     if sum(k == "circle" for k, _ in prims) != 1:
         raise ConfigError(path, "profile", [k for k, _ in prims], "needs exactly one circle primitive (the curved wall)")
+    if t.has("sources") or t.has("estimates"):  # a bowl file: every number's origin (taimill.model.provenance)
+        read_origins(t, tuple(k for k in ORIGIN_KEYS if t.has(k) or k == "radius_mm"))
     t.done()
     _check_primitives(path, prims)
     load_material(wall, path)

@@ -20,6 +20,8 @@ from taimill.model.contact.registry import NAMES as LAW_NAMES
 from taimill.model.contact_sets import NormalLaw, contact_laws
 from taimill.model.drive import Drive
 from taimill.model.jars import Jar, load_jar
+from taimill.model import mills
+from taimill.model.mills import Mill, load_mill
 from taimill.model.materials import (FRICTION_KEYS, Balls, Friction, contact_table, load_friction, load_material,
                                      read_friction)
 from taimill.model.positions import load_positions
@@ -31,14 +33,15 @@ GRAVITY = 9.81  #: m/s²
 # Contact kinds a preset may give its own friction pair and tuning (a coated jar: ball-wall only).
 KINDS = ("ball_ball", "ball_wall")
 # The keys of each kind of table (unknown keys are errors, reported with the nearest known one)
-PRESET_KEYS = ("jar", "pair", "plate_rpm", "ratio", "jar_rpm", "duration", "analysis_start", "dt", "seed", "law",
-               "initial_positions", "ramp_time", "plate_radius_mm", "gravity", "balls", "powder", "outputs", "friction",
+PRESET_KEYS = ("mill", "jar", "jar_volume_ml", "pair", "plate_rpm", "ratio", "jar_rpm", "duration", "analysis_start", "dt",
+               "seed", "law", "initial_positions", "ramp_time", "plate_radius_mm", "gravity", "balls", "powder", "outputs",
+               "friction",
                *(f"pair_{k}" for k in KINDS), *(f"friction_{k}" for k in KINDS))
 BALLS_KEYS = ("count", "filling", "material", "radius_mm")
 POWDER_KEYS = ("mass_g", "ball_to_powder")
 #: an override of one key drops the other from the file (the command line wins)
 EXCLUSIVE = {"ratio": "jar_rpm", "jar_rpm": "ratio", "balls.count": "balls.filling", "balls.filling": "balls.count",
-             "powder.mass_g": "powder.ball_to_powder"}
+             "powder.mass_g": "powder.ball_to_powder", "jar": "jar_volume_ml", "jar_volume_ml": "jar"}
 OUTPUTS_KEYS = ("trajectory_rate",)
 
 INLINE_POSITIONS = 1000  # balls; a resolved config lists at most this many start positions
@@ -68,6 +71,7 @@ class Preset:
     #: one line each, for the user before the run starts: numbers that are estimates or
     #: assumptions, implausible but allowed values (the loader appends; cli prints them)
     warnings: tuple[str, ...] = field(default=(), compare=False)
+    mill: Mill | None = None  #: the planetary mill (its gear, plate speeds, R_p unless the preset gives plate_radius_mm)
 
     @property
     def frictions(self) -> tuple[Friction, Friction]:
@@ -76,11 +80,18 @@ class Preset:
 
     def as_dict(self) -> dict:
         """Resolved configuration as plain JSON-able data (for stores and summaries);
-        the drive's speeds are top-level keys in every form (see Drive.as_dict)."""
-        d = dataclasses.asdict(dataclasses.replace(self, initial_positions=None))
+        the drive's speeds are top-level keys in every form (see Drive.as_dict). `mill`
+        is the mill's own data (Mill.as_dict: name, maker, model, stations, its R_p as
+        plate_radius_mm, gear, plate speeds, bowls); the `plate_radius` in use is the
+        mill's unless the preset's plate_radius_mm overrides it (`plate_radius_from`:
+        "mill" or "preset")."""
+        d = dataclasses.asdict(dataclasses.replace(self, initial_positions=None, mill=None))
         del d["drive"], d["warnings"]
         if self.powder is None:
             del d["powder"]
+        if self.mill is not None:
+            d["mill"] = self.mill.as_dict()
+            d["plate_radius_from"] = "mill" if self.plate_radius == self.mill.plate_radius else "preset"
         x = self.initial_positions
         if x is not None:  # inline for a few balls; the trajectory's first frame holds them all anyway
             d["initial_positions"] = x.tolist() if len(x) <= INLINE_POSITIONS else f"{len(x)} ball centres: the trajectory's first frame"
@@ -116,8 +127,12 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     overridden = frozenset(k for k, v in overrides.items() if v is not None)
     t = Table(data, source, "", overridden, known=PRESET_KEYS)
 
+    mill_src = t.where("mill")
+    mill = load_mill(t.get("mill", mills.DEFAULT, kind=str), mill_src, Path.cwd() if mill_src == "command line" else path.parent)
+    warnings: list[str] = []
     # a jar file named on the command line is relative to the current folder, in a preset to the preset's
-    jar = load_jar(t.get("jar", kind=str), t.where("jar"), None if t.where("jar") == "command line" else path.parent)
+    jar_src = t.where("jar_volume_ml" if t.has("jar_volume_ml") else "jar")
+    jar = load_jar(_jar_name(t, mill, warnings), jar_src, None if jar_src == "command line" else path.parent)
     bt = t.table("balls", known=BALLS_KEYS)
     material = load_material(bt.get("material", kind=str), source)
     radius = bt.get("radius_mm", lo=0, lo_open=True, hi=0.5e3 * min(jar.radius, jar.height)) * 1e-3
@@ -145,15 +160,23 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     law = t.get("law", None, allowed=LAW_NAMES)
     ball_ball, ball_wall = contact_laws(contact, law, balls, jar, source)
 
-    plate_rpm = t.get("plate_rpm", **RANGES["plate_rpm"].bounds)
+    r = mill.plate_range
+    plate_rpm = t.get("plate_rpm", **(r.bounds if mill.plate_rpm_max is None else {}))
     if plate_rpm == 0:
-        r = RANGES["plate_rpm"]
         raise ConfigError(t.where("plate_rpm"), "plate_rpm", plate_rpm, f"allowed range [{r.lo:g}, 0) or (0, {r.hi:g}] {r.unit}: "
                           "the speed ratio K = ω/Ω + 1 is undefined for a plate at rest")
+    rules.plate_speed_fits(t.where("plate_rpm"), "plate_rpm", plate_rpm, mill)
     rules.one_jar_speed(t.where("jar_rpm"), data.get("ratio"), data.get("jar_rpm"))
     jar_key = "jar_rpm" if t.has("jar_rpm") else "ratio"
-    jar_speed = t.get(jar_key, **RANGES[jar_key].bounds)
-    plate_radius = t.get("plate_radius_mm", 125.0, lo=0, lo_open=True, hi=2000) * 1e-3
+    given = jar_key if t.has(jar_key) else None
+    if mill.gear.kind == "fixed":  # K from the gear; a given jar speed is refused
+        jar_key, jar_speed = "ratio", rules.gear_ratio(t.where(given) if given else source, given, data.get(given), mill)
+    else:
+        if given is None and mill.gear.kind == "set":
+            rules.gear_ratio(source, None, None, mill)
+        jar_speed = t.get(jar_key, **RANGES[jar_key].bounds)
+    plate_radius_mm = t.get("plate_radius_mm", None, lo=0, lo_open=True, hi=2000)
+    plate_radius = mill.plate_radius if plate_radius_mm is None else plate_radius_mm * 1e-3
     rules.plate_fits_jar(t.where("plate_radius_mm"), plate_radius, jar)
 
     duration = t.get("duration", lo=0, lo_open=True, hi=36000)
@@ -166,6 +189,9 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     ramp_time = t.get("ramp_time", 1.0, **(RANGES["ramp_time"].bounds | {"hi": duration}))
     drive = Drive.from_rpm(plate_rpm, **{jar_key: jar_speed}, ramp_time=ramp_time)
     rules.jar_speed_fits(t.where(jar_key), jar_key, jar_speed, drive)
+    if mill.gear.kind != "fixed":
+        rules.gear_ratio(t.where(jar_key), jar_key, jar_speed, mill, drive)
+    warnings += mill.estimates_in_use(radius_from_mill=plate_radius_mm is None)
     gravity = t.get("gravity", GRAVITY, lo=0, hi=1000)
     seed = t.get("seed", 0, kind=int, lo=0, hi=2**63 - 1)
 
@@ -191,12 +217,24 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     measured = contact_table(contact)[0].get("ball_radius_mm")
     checks = (rules.ball_size_note(balls.radius, measured * 1e-3 if isinstance(measured, (int, float)) else None, contact),
               rules.start_up_note(analysis_start, duration, ramp_time))
-    warnings = [*notes, *(n for n in checks if n)]
+    warnings += [*notes, *(n for n in checks if n)]
     return Preset(
         source, jar, balls, pair, friction, ball_ball, ball_wall, drive, plate_radius,
         duration, analysis_start, dt, is_auto, seed, rate, gravity, init, wall_friction, powder=powder,
-        warnings=tuple(warnings),
+        warnings=tuple(warnings), mill=mill,
     )
+
+
+def _jar_name(t: Table, mill: Mill, warnings: list) -> str:
+    """The jar: `jar` (a name or jar file), or the mill's bowl of `jar_volume_ml` (its
+    maker's bowl file; its estimated sizes are added to warnings)."""
+    if not t.has("jar_volume_ml"):
+        return t.get("jar", kind=str)
+    rules.one_jar(t.where("jar_volume_ml"), t.data.get("jar"), t.data["jar_volume_ml"])
+    volume = t.get("jar_volume_ml", kind=int, lo=1, hi=100_000)
+    path = mills.bowl_path(mill, volume, t.where("jar_volume_ml"))
+    warnings += mills.bowl_estimates(mill, path, t.where("jar_volume_ml"))
+    return str(path)
 
 
 def _kind_friction(t: Table, kind: str, friction: Friction, contact: str, path: Path, pair_base: Path) -> Friction:

@@ -40,7 +40,8 @@ class Range:
 
 
 # A negative Ω is the mirror image of a positive one, so a running mill takes Ω ≥ 0;
-# its ball count is what a terminal view can draw.
+# its ball count is what a terminal view can draw. plate_rpm is the global sanity cap:
+# a mill with known plate speeds replaces it (taimill.model.mills.Mill.plate_range).
 RANGES: dict[str, Range] = {
     "plate_rpm": Range(-1000, 1000, "rpm", live=(0.0, 1000.0)),
     "ratio": Range(-10, 10),

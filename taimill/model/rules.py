@@ -38,6 +38,13 @@ def one_of_two(source, key: str, value, other: str, other_value):
     raise ConfigError(source, key, value, f"give either {other} ({other_value!r}) or {key}, not both")
 
 
+def one_jar(source, jar, volume_ml):
+    """The jar is given as a jar (`jar`: a name or file) or as the mill's bowl of a volume
+    (`jar_volume_ml`), not both. None: not given."""
+    if jar is not None and volume_ml is not None:
+        raise ConfigError(source, "jar_volume_ml", volume_ml, "give either jar or jar_volume_ml, not both")
+
+
 def jar_speed_fits(source, key: str, value, drive):
     """One limit on the jar's speed however it is given: ω = w − Ω (relative to the
     plate) within RANGES["jar_rpm"], also when the jar's speed came as K = `ratio`
@@ -53,6 +60,43 @@ def jar_speed_fits(source, key: str, value, drive):
     raise ConfigError(source, key, value, f"allowed range [{max(a, k.lo):.4g}, {min(b, k.hi):.4g}] at plate_rpm = {p:g}: "
                       f"the jar would turn at {drive.jar_rpm:.6g} rpm relative to the plate, "
                       f"at most [{r.lo:g}, {r.hi:g}] {r.unit} however its speed is given")
+
+
+def plate_speed_fits(source, key: str, plate_rpm, mill):
+    """Ω (rpm) within the mill's plate speeds (`Mill.plate_range`, and at least its
+    plate_rpm_min in size where known); a mill with unknown limits keeps the global
+    RANGES["plate_rpm"]. Ω = 0 is allowed here (a live mill at rest); the preset
+    refuses it where K would be undefined."""
+    r = mill.plate_range
+    lo = mill.plate_rpm_min
+    if r.lo <= plate_rpm <= r.hi and (lo is None or plate_rpm == 0 or abs(plate_rpm) >= lo):
+        return plate_rpm
+    if mill.plate_rpm_max is None and lo is None:
+        raise ConfigError(source, key, plate_rpm, f"allowed range [{r.lo:g}, {r.hi:g}] {r.unit}")
+    raise ConfigError(source, key, plate_rpm, f"allowed range [{lo or 0:g}, {r.hi:g}] {r.unit} on the mill {mill.name} "
+                      "(a negative speed is its mirror image)")
+
+
+def gear_ratio(source, key: str | None, value, mill, drive=None) -> float | None:
+    """The speed ratio K the mill's gear allows. key, value: how the jar's speed was given
+    (`ratio` K or `jar_rpm` ω, None: not given), drive: the `Drive` it gives. A fixed gear
+    refuses any given speed and returns its K; a set of gears takes only its K; a free gear
+    within a range only K in it. Returns the fixed gear's K, else None (the given speed stands)."""
+    g = mill.gear
+    if g.kind == "fixed":
+        if key is not None:
+            raise ConfigError(source, key, value, f"{mill.name} has a fixed gear {g.text} ({g.k_text}); {key} cannot be set")
+        return g.ks[0]
+    if key is None:
+        allowed = f" ({g.k_text}, gear {g.text})" if g.kind == "set" else ""
+        raise ConfigError(source, "ratio", None, f"missing (required key): give ratio or jar_rpm{allowed}")
+    k = drive.ratio
+    if g.kind == "set" and not any(abs(k - x) <= 1e-9 * max(1.0, abs(x)) for x in g.ks):
+        raise ConfigError(source, key, value, f"{mill.name} has the gears {g.text}: allowed {g.k_text}" +
+                          (f" (here K = {k:.6g})" if key != "ratio" else ""))
+    if g.kind == "free" and ((g.k_min is not None and k < g.k_min) or (g.k_max is not None and k > g.k_max)):
+        raise ConfigError(source, key, value, f"{mill.name} drives the jar at {g.k_text}" + (f" (here K = {k:.6g})" if key != "ratio" else ""))
+    return None
 
 
 # ------------------------------------------------------------------ friction

@@ -269,10 +269,18 @@ class LiveMill:
         plate); with neither, K is kept (ω when Ω was 0). ramp_time (s) defaults to
         the preset's start-up ramp."""
         rules.one_jar_speed(SOURCE, ratio, jar_rpm)
+        mill = self.preset.mill
         given = {"plate_rpm": plate_rpm, "ratio": ratio, "jar_rpm": jar_rpm, "ramp_time": ramp_time}
-        new = self.target.retarget(**{k: check(k, v) for k, v in given.items() if v is not None})
+        if plate_rpm is not None:  # the mill's plate speeds (the global cap where unknown)
+            rules.plate_speed_fits(SOURCE, "plate_rpm", mill.plate_range.check_live(SOURCE, "plate_rpm", plate_rpm), mill)
         key = "jar_rpm" if jar_rpm is not None else "ratio"
+        speed_given = ratio is not None or jar_rpm is not None
+        if speed_given and mill.gear.kind == "fixed":
+            rules.gear_ratio(SOURCE, key, given[key], mill)
+        new = self.target.retarget(**{k: v if k == "plate_rpm" else check(k, v) for k, v in given.items() if v is not None})
         rules.jar_speed_fits(SOURCE, key, jar_rpm if jar_rpm is not None else new.ratio, new)
+        if speed_given:
+            rules.gear_ratio(SOURCE, key, given[key], mill, new)
         om, w, T = new.plate_omega, new.jar_spin, new.ramp_time
         dt = rules.running_dt(self.preset, self._peak(self.plate, om), self._peak(self.jar, w), self.dt_fixed)
         with self._locked():

@@ -29,14 +29,14 @@ from taimill.store.sweep import SweepStore, scalars
 # Swept preset keys, outermost first (ratio innermost: a chunk holds neighbouring K).
 # "friction.mu" is one Coulomb coefficient, μ_s = μ_d, of the preset's pair (both contact
 # kinds unless pair_ball_wall is given); "friction.mu_r" its rolling resistance.
-AXES = ("jar", "balls.count", "pair", "pair_ball_wall", "friction.mu", "friction.mu_r", "plate_rpm", "ratio")
+AXES = ("mill", "jar", "balls.count", "pair", "pair_ball_wall", "friction.mu", "friction.mu_r", "plate_rpm", "ratio")
 # the table column of each outer axis (refinement finds a combination's curve by them)
-AXIS_COLUMNS = {"jar": "jar", "balls.count": "balls", "pair": "pair_name", "pair_ball_wall": "pair_ball_wall",
+AXIS_COLUMNS = {"mill": "mill", "jar": "jar", "balls.count": "balls", "pair": "pair_name", "pair_ball_wall": "pair_ball_wall",
                 "friction.mu": "mu", "friction.mu_r": "mu_r", "plate_rpm": "plate_rpm"}
 MAX_POINTS = 10_000
 # The flattened keys of a resolved configuration each swept file sets: a change to that
 # file is named by them (content).
-FILE_AXES = {"jar": ("jar",), "pair": ("pair", "friction", "ball_ball", "ball_wall"), "pair_ball_wall": ("wall_friction",)}
+FILE_AXES = {"mill": ("mill",), "jar": ("jar",), "pair": ("pair", "friction", "ball_ball", "ball_wall"), "pair_ball_wall": ("wall_friction",)}
 MAX_AUTO_BATCH = 16
 
 
@@ -147,8 +147,8 @@ def plan(req: Request, ratios_for=None) -> list[dict]:
                 mu = ov.pop("friction.mu")
                 ov["friction.mu_s"] = ov["friction.mu_d"] = mu
             p = load_preset(req.preset, ov)
-            # a jar as given: the built-in CY and a user's CY.toml share a name, not a curve
-            label = {"jar": fixed["jar"]} if "jar" in fixed else {}
+            # a jar or mill as given: the built-in CY and a user's CY.toml share a name, not a curve
+            label = {k: fixed[k] for k in ("mill", "jar") if k in fixed}
             points.append({"overrides": ov, "values": point_values(p, r) | label, "preset": p})
     return points
 
@@ -190,7 +190,7 @@ def point_values(p, replica: int) -> dict:
     """The table's description of a resolved preset (SI radii, rpm). `pair` tells the
     curves apart: the preset's pair, and what differs from its own friction."""
     bb, bw = p.frictions
-    return {"jar": p.jar.name, "balls": p.balls.count, "pair": friction_label(p), "plate_rpm": round(p.drive.plate_rpm, 9),
+    return {"mill": p.mill.name, "jar": p.jar.name, "balls": p.balls.count, "pair": friction_label(p), "plate_rpm": round(p.drive.plate_rpm, 9),
             "ratio": round(p.drive.ratio, 10), "seed": p.seed, "replica": replica, "plate_radius": p.plate_radius,
             "ball_mass": p.balls.mass,
             "jar_radius": p.jar.radius, "ball_radius": p.balls.radius, "duration": p.duration,
@@ -292,7 +292,7 @@ def _py(v):
 
 
 def curve_of(row: dict) -> tuple:
-    return tuple(row[k] for k in CURVE_COLUMNS)
+    return tuple(row.get(k, "") for k in CURVE_COLUMNS)  # rows from before mills have no mill
 
 
 def run_sweep(req: Request, store: SweepStore | None = None, **run_kw) -> tuple[list[dict], list[dict]]:

@@ -100,7 +100,7 @@ class MillApp(App):
         yield Footer()
 
     def on_mount(self):
-        self.sub_title = Path(self.mill.preset.source).name
+        self.sub_title = f"{Path(self.mill.preset.source).name} · mill {self.mill.preset.mill.name}"
         self._set_jar()
         self._show_now()
         self.set_interval(1.0, self._measure_fps)
@@ -120,7 +120,7 @@ class MillApp(App):
         m = self.mill
         return {"plate_rpm": m.plate_rpm, "ratio": m.ratio, "jar_rpm": m.jar_rpm, "ramp_time": m.target.ramp_time,
                 "mu_s": m.friction.mu_s, "mu_d": m.friction.mu_d, "mu_r": m.friction.mu_r, "balls": m.n_balls,
-                "pair": m.preset.pair, "jar": m.preset.jar.name,
+                "pair": m.preset.pair, "jar": m.preset.jar.name, "limits": {"plate_rpm": m.preset.mill.plate_range.live_bounds},
                 "kinds": {k: {"mu_s": f.mu_s, "mu_d": f.mu_d, "mu_r": f.mu_r} for k, f in zip(KINDS, m.frictions)}}
 
     def _set_jar(self):

@@ -4,9 +4,9 @@ kinds or of ball-ball or ball-wall contacts alone, jar and ball count.
 
 A field takes effect on Enter, which also leaves it (so letter keys act again); Tab and
 Shift+Tab move between fields, as the panel's hint says. It only parses the number:
-the ranges live in `taimill.runs.live.LIMITS`, checked by the LiveMill (ConfigError
-naming the field and its range); the input's red border while typing uses the same
-limits. When Ω changes, the jar speed last entered (K or ω) is the one held. μ_s and
+the ranges live in `taimill.runs.live.LIMITS` (the plate speed's: the mill's, given as
+`limits` with the settings), checked by the LiveMill (ConfigError naming the field and
+its range); the input's red border while typing uses the same limits. When Ω changes, the jar speed last entered (K or ω) is the one held. μ_s and
 μ_d are applied as a pair (Enter in either sends both fields as typed), so a lower μ_s
 with a lower μ_d is one change, not one refused for μ_d > μ_s. The `contact` choice
 says which contacts the friction fields and the pair apply to; the fields show that
@@ -87,7 +87,7 @@ class Controls(Vertical):
         yield Static(self.HINT, id="hint", classes="hint", markup=False)
         values = self._shown_values(self.values)
         for fid, (label, key) in FIELDS.items():
-            lo, hi = LIMITS[key]
+            lo, hi = self.values.get("limits", {}).get(key) or LIMITS[key]
             check = Integer(lo, hi) if key == "balls" else Number(lo, hi)
             if fid == "mu-s":
                 with Horizontal(classes="row"):
@@ -101,7 +101,8 @@ class Controls(Vertical):
             yield Select([(p, p) for p in pairs_for(self.values["pair"])], value=self.values["pair"], allow_blank=False, id="pair", compact=True)
         with Horizontal(classes="row"):
             yield Label("jar")
-            yield Select([(j, j) for j in jar_names()], value=self.values["jar"], allow_blank=False, id="jar", compact=True)
+            jars = dict.fromkeys([*jar_names(), self.values["jar"]])  # also a jar file or a mill's bowl in use
+            yield Select([(j, j) for j in jars], value=self.values["jar"], allow_blank=False, id="jar", compact=True)
 
     def on_mount(self):
         self._mark_held()
@@ -138,7 +139,7 @@ class Controls(Vertical):
         try:
             return int(text) if key == "balls" else float(text)
         except ValueError:
-            lo, hi = LIMITS[key]
+            lo, hi = self.values.get("limits", {}).get(key) or LIMITS[key]
             self.post_message(Notice(f"refused {key} = {text!r} ({label}): not a number; allowed range [{lo:g}, {hi:g}]", error=True))
             self.show(self.values)
             return None

@@ -83,9 +83,10 @@ def cmd_report(a) -> int:
     out = a.out or str(Path(a.run)).rstrip("/").removesuffix(".zarr") + "-report"
     out = check_output(out, "--out", overwrite=None, folder=True)
     if _is_sweep(a.run):
-        from taimill.figures.sweep import FIGURES, read_overlay, report_sweep
+        from taimill.figures.sweep import figure_stems, read_overlay, report_sweep
+        from taimill.store.sweep import open_sweep
 
-        stems = [f[0] for f in FIGURES] + ["regimes"] + (["overlay"] if a.overlay else [])
+        stems = figure_stems(open_sweep(a.run).table(), bool(a.overlay))  # against the swept axes; maps of two
         _refuse_existing(out, stems, a)
         if a.overlay:
             read_overlay(a.overlay)  # its errors before any figure is drawn

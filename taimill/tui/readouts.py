@@ -6,6 +6,7 @@ K_c; docs/outputs.md)."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 from textual.widgets import Static
@@ -26,6 +27,20 @@ ROWS = tuple((key, label, *_UNITS[key]) for key, label in (
     ("dissipated_power_persistent", "  persistent"),
     ("energy_balance_error", "energy balance err"),
 ))
+
+
+def mill_name(preset) -> str | None:
+    """The name of the mill the preset's jar turns on (its resolved config's `mill`
+    table), None when it names none."""
+    mill = preset.as_dict().get("mill")
+    name = mill.get("name") if isinstance(mill, dict) else None
+    return str(name) if name else None
+
+
+def title(preset) -> str:
+    """The header's subtitle: the preset file, and the mill's name when it names one."""
+    name, mill = Path(preset.source).name, mill_name(preset)
+    return f"{name} · {mill}" if mill else name
 
 
 def number(value, scale=1.0) -> str:

@@ -112,7 +112,7 @@ def sweep_axes(table, candidates=()) -> SweepAxes:
     else:
         x = varying[0] if varying else "ratio"
     y = next((c for c in numeric if c != x), None) if len(numeric) == 2 else None
-    fixed = tuple(c for c in HEADLINE if c in table and c not in varying and len(table[c]))
+    fixed = tuple(c for c in HEADLINE if c in table and c not in varying and c != x and len(table[c]))
     return SweepAxes(x, y, tuple(c for c in varying if c != x), fixed, bool(varying) and not numeric)
 
 

@@ -86,10 +86,14 @@ def cmd_report(a) -> int:
         from taimill.figures.sweep import figure_stems, read_overlay, report_sweep
         from taimill.store.sweep import open_sweep
 
-        stems = figure_stems(open_sweep(a.run).table(), bool(a.overlay))  # against the swept axes; maps of two
-        _refuse_existing(out, stems, a)
         if a.overlay:
-            read_overlay(a.overlay)  # its errors before any figure is drawn
+            read_overlay(a.overlay)  # its errors before the store is read or any figure drawn
+        try:  # maps too where two numeric axes vary
+            table = open_sweep(a.run).table()
+        except ConfigError:  # also StoreError: said by report_sweep, after the --out checks
+            table = {}
+        stems = figure_stems(table, bool(a.overlay))
+        _refuse_existing(out, stems, a)
         paths = report_sweep(a.run, out, a.format, overlay=a.overlay)
         _mark(out, paths)
     else:

@@ -512,3 +512,45 @@ def test_sweep_prints_every_distinct_warning_once_before_running(monkeypatch):
     assert warned == ["taimill: warning: plate radius is an estimate", "taimill: warning: odd point 0",
                       "taimill: warning: odd point 1"]
     assert lines.index(warned[-1]) < lines.index("taimill: stopped by the test")
+
+
+def test_sweep_table_adds_the_whole_mill_where_the_points_name_their_stations():
+    from taimill.cli.sweep import sweep_table
+
+    rows = [{"point": i, "jar": "CY", "balls": 12, "pair": "steel-steel", "plate_rpm": rpm, "ratio": -1.0, "seed": 1,
+             "impact_power": 0.1 * i, "dissipated_power": 0.02, "regime": "cataracting", "regime_class": "cataracting",
+             "wall_lag": 0.5} for i, rpm in enumerate((100.0, 200.0))]
+    alone = sweep_table(rows)
+    assert "mill" not in alone and "Ω rpm" in alone.splitlines()[1]
+    milled = sweep_table([r | {"stations": 4, "impact_power_mill": 4 * r["impact_power"],
+                               "dissipated_power_mill": 0.08} for r in rows])
+    header = milled.splitlines()[1]
+    assert "P_I mill W" in header and "P_diss mill W" in header and "(4 stations)" in milled.splitlines()[-1]
+
+
+def test_text_axes_are_curves_with_one_legend_entry_each_or_categories_on_x():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from taimill.figures.sweep import FIGURES, sweep_figure
+
+    n = 6
+    geometry = {"plate_radius": np.full(n, 0.125), "ball_radius": np.full(n, 0.006), "regime": np.array(["cataracting"] * n),
+                "point": np.arange(n), "balls": np.full(n, 12), "plate_rpm": np.full(n, 200.0), "mean_se": np.linspace(1e-3, 2e-3, n)}
+    # jars × K: K across, one curve per jar, each once in the legend
+    t = geometry | {"jar": np.repeat(["CY", "HM"], 3), "jar_radius": np.repeat([0.0325, 0.034], 3),
+                    "ratio": np.tile([-1.0, -2.0, -3.0], 2)}
+    _, title, panels, ylabel, scale = FIGURES[0]
+    fig = sweep_figure(t, title, panels, ylabel, scale)
+    labels = fig.axes[0].get_legend_handles_labels()[1]
+    assert [lab for lab in labels if lab in ("CY", "HM")] == ["CY", "HM"] and "K" in fig.axes[0].get_xlabel()
+    plt.close(fig)
+    # jars alone at one K: the jars are the x axis, as categories
+    t = geometry | {"jar": np.array(["CY", "HM", "T"] * 2), "jar_radius": np.array([0.0325, 0.034, 0.03] * 2),
+                    "ratio": np.full(n, -2.0)}
+    fig = sweep_figure(t, title, panels, ylabel, scale)
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "jar" and [tk.get_text() for tk in ax.get_xticklabels()] == ["CY", "HM", "T"]
+    plt.close(fig)

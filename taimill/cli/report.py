@@ -192,10 +192,14 @@ def text_report(q: dict) -> str:
         lines.append(f"sampled estimator unavailable: {s['error']}")
     crit = ", ".join(f"{k} {v:.3f}" for k, v in q["regime_criteria"].items())
     h = q["wear_hot_spot"]
-    lines += [f"stress-event rate {_f(e.get('collision_rate'), 1, ' /s')}; dissipated power {_f(q['dissipated_power'], 1, ' W')}; "
-              f"energy balance error {_f(q['energy_balance_error'], 100, ' %')}",
-              f"randomness index 1/σ {_f(q['randomness_index'])}",
-              f"regime {q['regime']} (confidence {_f(q['regime_confidence'])}; {crit})",
+    lines += [f"stress-event rate {_f(e.get('collision_rate'), 1, ' /s')}; dissipated power {_f(q['dissipated_power'], 1, ' W')} "
+              f"(one jar); energy balance error {_f(q['energy_balance_error'], 100, ' %')}"]
+    if q.get("stations"):
+        lines.append(f"whole mill ({q['stations']} stations): impact power {_f(q.get('impact_power_mill'), 1, ' W')}, "
+                     f"dissipated power {_f(q.get('dissipated_power_mill'), 1, ' W')}")
+    lines += [f"randomness index 1/σ {_f(q['randomness_index'])}",
+              f"regime {q['regime']}, class {q.get('regime_class', '–')} (confidence {_f(q['regime_confidence'])}; "
+              f"slip ratio {_f(q.get('slip_ratio'))}; {crit})",
               f"critical ratio K_c {q['critical_ratio']:.3f}; one-ball hit energy {_f(q['single_ball_hit']['se'], 1e3, ' mJ')}"]
     if h.get("surface"):
         lines.append(f"wear hot spot: {h['surface']} at {h['angle_deg']:.0f}°"

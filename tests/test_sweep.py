@@ -434,7 +434,8 @@ def test_sweep_rows_and_table_carry_regime_class_wall_lag_and_power(omega_sweep)
 def test_a_plate_speed_by_k_sweep_is_drawn_as_a_map(tmp_path):
     from matplotlib.collections import QuadMesh
 
-    from taimill.figures.sweep import figure_stems, map_figure, store_axes
+    from taimill.figures.sweep import figure_stems, store_axes
+    from taimill.figures.sweep_map import map_figure
 
     out = tmp_path / "map.zarr"
     res = taimill("sweep", PRESET, "--plate-rpm", "100,200", "--ratio", "-1,-2.5", "--duration", 0.1, "--workers", 2,

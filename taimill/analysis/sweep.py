@@ -265,3 +265,32 @@ def parabolic_peak(ks, values) -> dict:
         return {"ratio": float(uk[i]), "value": float(means[i]), "method": "grid"}
     dx = float(np.clip(-b / (2 * a), x[0] - x[1], x[2] - x[1]))
     return {"ratio": float(x[1] + dx), "value": float(c + b * dx + a * dx * dx), "method": "parabola"}
+
+
+def x_values(table: dict, rows, x: str) -> np.ndarray:
+    """The x coordinate of `rows`: the column's numbers (rounded to 10 decimals, in the
+    table's unit), or for a text axis the index of each value among the table's values."""
+    v = np.asarray(table[x])[rows]
+    if is_text(table[x]):
+        names = list(dict.fromkeys(str(c) for c in table[x]))
+        return np.array([names.index(str(c)) for c in v], dtype=float)
+    return np.round(v.astype(float), 10)
+
+
+def curves(table: dict, axes: SweepAxes | None = None) -> dict[str, np.ndarray]:
+    """Label → row indices, one curve per combination of the values of the axes that
+    vary besides x (axes.curves); the label names those values ("Ω = 200 rpm, HM")."""
+    axes = axes or sweep_axes(table)
+    n = len(table["point"])
+    out: dict = {}
+    for i in range(n):
+        label = ", ".join(value_text(c, table[c][i].item() if hasattr(table[c][i], "item") else table[c][i])
+                          for c in axes.curves)
+        out.setdefault(label or "all points", []).append(i)
+    return {label: np.array(rows) for label, rows in out.items()}
+
+
+def first_value(column):
+    """The first value of a column, as a Python value."""
+    v = np.asarray(column)[0]
+    return v.item() if hasattr(v, "item") else v

@@ -5,8 +5,7 @@ thesis' Figs 3.7, 3.8, 4.5, 4.13, 5.1 and 5.5: figures against the swept variabl
 axis (jar, pair, material, mill, Ω …), the replicas' mean with its 95 % Student-t band;
 against K the single-ball critical ratio K_c (docs/model.md) is marked and the refined
 maximum starred. A sweep over two numeric axes (plate speed × K, as on a free-gear
-mill) is also drawn as maps (map_<metric>.<fmt>): the metric as colour, each cell's
-regime class (taimill.analysis.regime.MAP_REGIMES) as a marker.
+mill) is also drawn as maps (taimill.figures.sweep_map).
 Where the replicas at a value end in different motion regimes (bistable, e.g. pinned to
 the wall or cataracting near the collapse) the mean is ringed and each replica drawn
 with its regime's marker; regimes.<fmt> shows the share of the replicas in each regime
@@ -35,12 +34,11 @@ from pathlib import Path
 
 import numpy as np
 
-from taimill.analysis.regime import MAP_REGIMES, map_regime, slip_ratio
-from taimill.analysis.theory import critical_ratio
 from taimill.errors import ConfigError
 from taimill.model.files import csv_cells, read_text
-from taimill.analysis.sweep import (REGIMES, SweepAxes, axis_label, axis_scale, is_text, mean_band, regime_fractions,
-                                    sweep_axes, value_text)
+from taimill.analysis.sweep import (REGIMES, SweepAxes, axis_label, axis_scale, curves, first_value, mean_band,
+                                    regime_fractions, sweep_axes, value_text, x_values)
+from taimill.figures.sweep_map import MAPS, map_figure, mark_critical
 
 # file stem, figure title, [(column, panel title)], y label, scale to the plotted unit
 FIGURES = (
@@ -51,12 +49,8 @@ FIGURES = (
     ("randomness", "Randomness index 1/σ of g(r), eq 3.9 (thesis Fig 3.8)", [("randomness_index", "1/σ")], "1/σ", 1.0),
     ("normal_fraction", "Normal share of the stress energy", [("normal_fraction", "SE_n / SE")], "normal fraction", 1.0),
 )
-# maps of a sweep over two numeric axes: (file stem, column, colour bar label, scale)
-MAPS = (("map_impact_power", "impact_power", "impact power E_I/τ, one jar (W)", 1.0),
-        ("map_dissipated_power", "dissipated_power", "dissipated power, one jar (W)", 1.0))
 K_LABEL = "K = ω/Ω + 1 (jar spin / plate spin; |K| grows to the right)"
 REGIME_MARKERS = {"cascading": "s", "cataracting": "^", "rolling": "v"}  # any other label: "x"
-CLASS_MARKERS = {"cascading": "s", "cataracting": "^", "pinned ring": "o", "sliding bed": ">", "rolling bed": "D"}  # else "x"
 MIXED_LABEL = "mean over replicas in different regimes"
 
 
@@ -109,29 +103,6 @@ def store_axes(store, table) -> SweepAxes:
     return sweep_axes(table, [k for p in store.plan[:1] for k in p.get("values", {})])
 
 
-def x_values(table: dict, rows, x: str) -> np.ndarray:
-    """The x coordinate of `rows`: the column's numbers (rounded to 10 decimals, in the
-    table's unit), or for a text axis the index of each value among the table's values."""
-    v = np.asarray(table[x])[rows]
-    if is_text(table[x]):
-        names = list(dict.fromkeys(str(c) for c in table[x]))
-        return np.array([names.index(str(c)) for c in v], dtype=float)
-    return np.round(v.astype(float), 10)
-
-
-def curves(table: dict, axes: SweepAxes | None = None) -> dict[str, np.ndarray]:
-    """Label → row indices, one curve per combination of the values of the axes that
-    vary besides x (axes.curves); the label names those values ("Ω = 200 rpm, HM")."""
-    axes = axes or sweep_axes(table)
-    n = len(table["point"])
-    out: dict = {}
-    for i in range(n):
-        label = ", ".join(value_text(c, table[c][i].item() if hasattr(table[c][i], "item") else table[c][i])
-                          for c in axes.curves)
-        out.setdefault(label or "all points", []).append(i)
-    return {label: np.array(rows) for label, rows in out.items()}
-
-
 def band(table: dict, rows: np.ndarray, column: str, x: str = "ratio") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Unique x values (ascending; K by default), replicate mean and 95 % half-width (NaN for one replica)."""
     k = x_values(table, rows, x)
@@ -179,7 +150,7 @@ def sweep_figure(table, title, panels, ylabel, scale, peaks=(), measured=None, a
         _mixed_legend(ax, drawn)
         if axes.x == "ratio":  # landmarks of K
             _mark_peaks(ax, peaks, column, scale)
-            _mark_critical(ax, table)
+            mark_critical(ax, table)
         ax.set_title(panel, fontsize=10)
         _x_axis(ax, table, axes)
         ax.set_ylabel(ylabel)
@@ -191,15 +162,10 @@ def sweep_figure(table, title, panels, ylabel, scale, peaks=(), measured=None, a
         title += " — mean of replicas, 95 % band"
     if any(g["bistable"] for rows in groups.values() for g in regime_groups(table, rows, axes)):
         title += "; ringed: replicas in different regimes"
-    fixed = ", ".join(value_text(c, _first(table[c])) for c in axes.fixed if c != axes.x)
+    fixed = ", ".join(value_text(c, first_value(table[c])) for c in axes.fixed if c != axes.x)
     fig.suptitle(title + (f"\n{fixed}" if fixed else ""), fontsize=11)
     fig.tight_layout()
     return fig
-
-
-def _first(column):
-    v = np.asarray(column)[0]
-    return v.item() if hasattr(v, "item") else v
 
 
 def regime_groups(table: dict, rows: np.ndarray, axes: SweepAxes | None = None) -> list[dict]:
@@ -260,7 +226,7 @@ def _regime_figure(table, axes: SweepAxes | None = None):
         if any_mixed:
             ax.plot([], [], "o", ms=12, mfc="none", mec="k", mew=1.2, label="replicas in different regimes")
         if axes.x == "ratio":
-            _mark_critical(ax, table)
+            mark_critical(ax, table)
         ax.set_title(regime, fontsize=10)
         _x_axis(ax, table, axes)
         ax.set_ylim(-0.05, 1.05)
@@ -271,92 +237,6 @@ def _regime_figure(table, axes: SweepAxes | None = None):
                  fontsize=11)
     fig.tight_layout()
     return fig
-
-
-def regime_class(row: dict) -> str:
-    """A sweep row's regime class (MAP_REGIMES): its stored `regime_class`, else (rows of
-    stores written before it) from its regime, slip ratio and wall lag."""
-    if row.get("regime_class"):
-        return str(row["regime_class"])
-    try:
-        return map_regime(str(row.get("regime", "")), slip_ratio(row), row.get("wall_lag", math.nan))
-    except (KeyError, TypeError, ValueError):
-        return "unknown"
-
-
-def map_figure(table: dict, column: str, label: str, scale: float = 1.0, axes: SweepAxes | None = None):
-    """The sweep as a map over its two numeric axes (axes.x across, axes.y up): each cell
-    coloured by the replicas' mean of `column` (× scale), marked by the regime class
-    most of its replicas end in; one panel per combination of the other varying axes."""
-    import matplotlib.pyplot as plt
-
-    axes = axes or sweep_axes(table)
-    if axes.y is None:
-        raise ValueError("a map needs a sweep over two numeric axes")
-    groups = curves(table, SweepAxes(axes.x, axes.y, tuple(c for c in axes.curves if c != axes.y), axes.fixed))
-    fig, plots = plt.subplots(1, len(groups), figsize=(6.4 * len(groups), 5.0), squeeze=False)
-    values = np.asarray(table[column], dtype=float) * scale if column in table else np.full(len(table["point"]), np.nan)
-    names = list(table)
-    sx, sy = axis_scale(axes.x) or 1, axis_scale(axes.y) or 1
-    cells = {}
-    for panel, rows in groups.items():  # per panel: x values, y values, mean grid, majority class per cell
-        xs, ys = x_values(table, rows, axes.x), x_values(table, rows, axes.y)
-        ux, uy = np.unique(xs), np.unique(ys)
-        grid = np.full((len(uy), len(ux)), np.nan)
-        marks = []
-        for i, yv in enumerate(uy):
-            for j, xv in enumerate(ux):
-                at = rows[(xs == xv) & (ys == yv)]
-                if len(at):
-                    grid[i, j] = mean_band(values[at])[0]
-                    classes = [regime_class({c: _item(table[c][r]) for c in names}) for r in at]
-                    marks.append((xv, yv, max(sorted(set(classes)), key=classes.count)))
-        cells[panel] = ux, uy, grid, marks
-    finite = np.concatenate([g[np.isfinite(g)] for _, _, g, _ in cells.values()])
-    vmin, vmax = (float(finite.min()), float(finite.max())) if len(finite) else (0.0, 1.0)
-    shown = set()
-    for ax, (panel, (ux, uy, grid, marks)) in zip(plots[0], cells.items()):
-        mesh = ax.pcolormesh(_edges(ux) * sx, _edges(uy) * sy, grid, cmap="viridis", vmin=vmin, vmax=vmax,
-                             edgecolors="white", linewidth=0.5)
-        for xv, yv, cls in marks:
-            ax.plot([xv * sx], [yv * sy], CLASS_MARKERS.get(cls, "x"), ms=7, mfc="none", mec="w", mew=1.4)
-            shown.add(cls)
-        ax.set_xlabel(axis_label(axes.x), fontsize=9)
-        ax.set_ylabel(axis_label(axes.y), fontsize=9)
-        if np.all(ux <= 0):
-            ax.invert_xaxis()
-        if axes.x == "ratio":
-            _mark_critical(ax, table)
-        if panel != "all points":
-            ax.set_title(panel, fontsize=10)
-        fig.colorbar(mesh, ax=ax, label=label)
-    handles = [plt.Line2D([], [], ls="none", marker=CLASS_MARKERS.get(c, "x"), mfc="none", mec="k", label=f"regime: {c}")
-               for c in (*MAP_REGIMES, "unknown") if c in shown]
-    plots[0][0].legend(handles=handles + plots[0][0].get_legend_handles_labels()[0], fontsize=7, loc="best", framealpha=0.9)
-    fixed = ", ".join(value_text(c, _first(table[c])) for c in axes.fixed if c not in (axes.x, axes.y))
-    fig.suptitle(f"{label}; markers: regime class" + (f"\n{fixed}" if fixed else ""), fontsize=10)
-    fig.tight_layout()
-    return fig
-
-
-def _item(v):
-    return v.item() if hasattr(v, "item") else v
-
-
-def _edges(v: np.ndarray) -> np.ndarray:
-    """Cell edges halfway between grid values."""
-    if len(v) == 1:
-        return np.array([v[0] - 0.5 * (abs(v[0]) or 1.0) * 0.1, v[0] + 0.5 * (abs(v[0]) or 1.0) * 0.1])
-    mid = 0.5 * (v[1:] + v[:-1])
-    return np.concatenate([[v[0] - (mid[0] - v[0])], mid, [v[-1] + (v[-1] - mid[-1])]])
-
-
-def _mark_critical(ax, table):
-    """K_c = -√(R_p / (R_jar - r)) for each geometry in the sweep (docs/model.md)."""
-    geoms = {(float(a), float(b), float(c)) for a, b, c in zip(table["plate_radius"], table["jar_radius"], table["ball_radius"])}
-    for n, g in enumerate(sorted(geoms)):
-        kc = critical_ratio(*g)
-        ax.axvline(kc, color="0.3", ls="--", lw=1, label="K_c, one ball" if n == 0 else None)
 
 
 def _mark_peaks(ax, peaks, column, scale):

@@ -306,7 +306,8 @@ async def test_side_panel_fits_120_columns(mill, tmp_path):
     app = MillApp(mill, out_dir=tmp_path, paused=True)
     async with app.run_test(size=SIZE) as pilot:
         lines = str(app.readouts.render()).splitlines()
-        assert lines[-1].startswith("regime") and len(lines) <= app.readouts.size.height  # no row cut off
+        assert lines[-2].startswith("regime") and lines[-1].startswith("  class")  # the regime-map class under it
+        assert len(lines) <= app.readouts.size.height  # no row cut off
         assert max(map(len, lines)) <= app.readouts.size.width
         # long numbers in the history captions: the range gets fewer digits, never cut
         app.history_plots.show({"impact_power": [0.1189, 15.05], "mean_se": [3.396e-4, 4.452e-3],

@@ -82,6 +82,10 @@ DERIVED_EVENT_COLUMNS = {
 }
 
 # ---------------------------------------------------------------- run summary
+# The regime split as the regime map splits it (taimill.analysis.regime.MAP_REGIMES,
+# the summary's `regime_class`), repeated here so that this module imports nothing.
+REGIME_CLASSES = ("cascading", "cataracting", "pinned ring", "sliding bed", "rolling bed")
+# A label with "{stations}" is filled with the summary's `stations` (the whole mill's rows).
 # (key in the summary, label, unit, scale)
 SUMMARY_ROWS = (
     ("sim_seconds", "simulated time", "s", 1),
@@ -92,21 +96,26 @@ SUMMARY_ROWS = (
     ("events_ball_ball", "  ball-ball", "", 1),
     ("events_ball_wall", "  ball-wall", "", 1),
     ("collision_rate", "stress-event rate", "1/s", 1),
-    ("impact_power", "impact power E_I/τ (eq 3.8)", "W", 1),
+    ("impact_power", "impact power E_I/τ (eq 3.8), one jar", "W", 1),
     ("impact_power_normal", "  normal", "W", 1),
     ("impact_power_tangential", "  tangential", "W", 1),
+    ("impact_power_mill", "impact power, whole mill ({stations} stations)", "W", 1),
     ("mean_se", "mean stress energy", "mJ", 1e3),
     ("mean_se_normal", "  normal", "mJ", 1e3),
     ("mean_se_tangential", "  tangential", "mJ", 1e3),
     ("normal_fraction", "normal / total SE", "", 1),
-    ("dissipated_power", "dissipated power", "W", 1),
+    ("dissipated_power", "dissipated power, one jar", "W", 1),
     ("dissipated_power_impact", "  in impacts", "W", 1),
     ("dissipated_power_persistent", "  in persistent contacts", "W", 1),
     ("dissipated_power_friction", "  by friction", "W", 1),
+    ("dissipated_power_mill", "dissipated power, whole mill ({stations} stations)", "W", 1),
     ("energy_balance_error", "energy balance error", "%", 100),
     ("randomness_index", "randomness index 1/σ", "", 1),
     ("regime", "motion regime", "", None),
     ("regime_confidence", "  confidence (share of 1 s pieces)", "", 1),
+    ("regime_class", "  class (regime map: 5 classes)", "", None),
+    ("wall_lag", "  wall lag (0: turns with jar, 1: rests on plate)", "", 1),
+    ("slip_ratio", "  wall slip ratio", "", 1),
     ("critical_ratio", "critical ratio K_c (one ball)", "", 1),
     ("single_ball_se", "one-ball hit energy (Burgio-type)", "mJ", 1e3),
 )
@@ -128,7 +137,9 @@ SUMMARY_UNITS: dict[str, str] = {
     "min_un": "m/s", "events_below_threshold": "1", "events_total": "1", "samples": "1",
     "collision_rate": "1/s", "collision_rate_per_ball": "1/s",
     "impact_power_density": "W/m³", "mean_se_density": "J/m³",
-    "dissipated_power": "W", "drive_work": "J", "energy_balance_error": "1", "energy_balance_worst": "1",
+    "dissipated_power": "W", "drive_work": "J",
+    "energy_balance_error": "1", "energy_balance_worst": "1",
+    "stations": "1", "impact_power_mill": "W", "dissipated_power_mill": "W",  # the whole mill: stations × one jar
     "dissipation_by_mechanism": "W",
     **{f"dissipated_power_{k}": "W" for k in (*MECHANISM_CLASSES, *MECHANISM_PARTS, *MECHANISM_KINDS)},
     "power": "W", "share": "1",  # main_sink

@@ -17,6 +17,7 @@ SUMMARY_KEYS = (
     "events", "events_ball_ball", "events_ball_wall", "impact_power", "impact_power_normal",
     "impact_power_tangential", "mean_se", "mean_se_normal", "mean_se_tangential", "dissipated_power",
     "energy_balance_error", "randomness_index", "regime", "sim_seconds", "wall_seconds", "realtime_factor",
+    "regime_class", "wall_lag", "slip_ratio",
 )
 
 
@@ -54,6 +55,9 @@ def test_run_without_json_prints_a_table():
     res = taimill("run", "presets/p4-cy-fluorite.toml", "--duration", 0.2)
     assert res.returncode == 0, res.stderr
     assert "impact power" in res.stdout and "energy balance error" in res.stdout
+    # the regime as the regime map splits it, and powers of one jar and of the whole mill (the P 4: 2 stations)
+    assert "class (regime map: 5 classes)" in res.stdout and "wall lag" in res.stdout
+    assert "one jar" in res.stdout and "whole mill (2 stations)" in res.stdout
 
 
 def test_calibrate_drop_prints_restitution():

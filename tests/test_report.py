@@ -203,3 +203,16 @@ def test_energy_plot_legend_names_the_balance_error_and_the_analysis_start(store
     assert "drive work (walls on balls)" in labels and len(labels) == 5
     plt.close(fig)
 
+
+
+def test_analyse_text_gives_the_regime_class_and_the_whole_mill_only_with_stations(stored):
+    from taimill.cli.report import text_report
+
+    path, s = stored
+    q = analyse(path).quantities()
+    assert q["regime_class"] == s["regime_class"] and "stations" not in q
+    text = text_report(q)
+    assert f"class {s['regime_class']}" in text and "wall_lag" in text and "whole mill" not in text
+    milled = text_report(q | {"stations": 2, "impact_power_mill": 2 * q["event_estimator"]["impact_power"],
+                              "dissipated_power_mill": 2 * q["dissipated_power"]})
+    assert "whole mill (2 stations)" in milled

@@ -30,9 +30,9 @@ def store(tmp_path_factory):
     return open_run(out)
 
 
-def feed(sink, store):
-    """The store's tables to a sink, one block each."""
-    sink.start(store.config, store.n_balls, store.radii)
+def feed(sink, store, config=None):
+    """The store's tables to a sink, one block each (`config`: instead of the store's)."""
+    sink.start(store.config if config is None else config, store.n_balls, store.radii)
     sink.events(store.events)
     sink.frames(store.frames)
     sink.energy(store.energy)
@@ -65,7 +65,7 @@ def assert_shared_equal(a: dict, b: dict, must: set):
 
 MUST = {"events", "impact_power", "mean_se", "collision_rate_per_ball", "impact_power_density", "dissipated_power",
         "dissipated_power_persistent", "main_sink", "energy_balance_error", "drive_work", "regime",
-        "regime_criteria", "critical_ratio", "analysis_window"}
+        "regime_criteria", "critical_ratio", "analysis_window", "regime_class", "wall_lag", "slip_ratio"}
 
 
 def test_the_summary_sink_and_analyse_report_the_same_summary(store):
@@ -86,3 +86,47 @@ def test_the_tui_window_and_analyse_report_the_same_summary(store):
     q = flat(analyse(store, analysis_start=t0).quantities())
     assert w["analysis_window"] == q["analysis_window"] and w["events"] > 0
     assert_shared_equal(w, q, MUST)
+
+
+def test_whole_mill_power_is_stations_times_one_jar_only_when_the_config_names_them(store):
+    from taimill.analysis.rungeometry import stations_of
+    from taimill.cli.common import summary_table
+
+    t0, t1 = store.analysis_window[0], float(store.frames["time"][-1])
+    alone = SummarySink(t0, t1)
+    feed(alone, store, {k: v for k, v in store.config.items() if k != "mill"})  # a store from before mills
+    s = alone.result(t1, 1.0)
+    assert not {"stations", "impact_power_mill", "dissipated_power_mill"} & s.keys()  # no mill: per jar only
+    assert "whole mill" not in summary_table(s)
+    milled = SummarySink(t0, t1)
+    milled.start(store.config | {"mill": {"name": "P 4", "stations": 4}}, store.n_balls, store.radii)
+    milled.events(store.events)
+    milled.frames(store.frames)
+    milled.energy(store.energy)
+    m = milled.result(t1, 1.0)
+    assert m["stations"] == 4
+    assert m["impact_power_mill"] == 4 * m["impact_power"] == 4 * s["impact_power"]
+    assert m["dissipated_power_mill"] == 4 * m["dissipated_power"] == 4 * s["dissipated_power"]
+    text = summary_table(m)
+    assert "impact power, whole mill (4 stations)" in text and "dissipated power, whole mill (4 stations)" in text
+    assert "one jar" in text
+    for bad in ({}, {"mill": {"name": "x"}}, {"mill": {"stations": 0}}, {"mill": {"stations": 2.5}},
+                {"mill": {"stations": "4"}}, {"mill": {"stations": True}}, {"mill": "P 4"}):
+        assert stations_of(bad) is None, bad
+    assert stations_of({"mill": {"stations": 2}}) == 2
+
+
+def test_the_run_summary_has_the_regime_class_and_wall_lag(store):
+    from taimill.analysis.regime import MAP_REGIMES
+    from taimill.cli.common import summary_table
+
+    t0, t1 = store.analysis_window[0], float(store.frames["time"][-1])
+    sink = SummarySink(t0, t1)
+    feed(sink, store)
+    s = sink.result(t1, 1.0)
+    assert s["regime_class"] in MAP_REGIMES
+    assert s["wall_lag"] == s["regime_criteria"]["wall_lag"] and math.isfinite(s["slip_ratio"])
+    if s["regime"] != "rolling":
+        assert s["regime_class"] == s["regime"]
+    text = summary_table(s)
+    assert "class (regime map: 5 classes)" in text and "wall lag" in text and s["regime_class"] in text

@@ -305,9 +305,9 @@ def test_sweep_json_and_table_give_the_regimes_of_the_replicas(local_sweep):
     res = taimill(*SWEEP, "--out", path)  # resumes a finished sweep: nothing runs
     assert res.returncode == 0, res.stderr
     header, *lines = res.stdout.split("regimes of the replicas")[1].splitlines()[1:]
-    labels = header.split()[7:-1]  # jar balls pair Ω rpm K replicas <regimes…> bistable
-    printed = {float(f[4]): (int(f[5]), dict(zip(labels, map(float, f[6:-1]))), f[-1])
-               for f in map(str.split, lines) if len(f) == len(labels) + 7}
+    labels = header.split()[2:-1]  # K replicas <regimes…> bistable: only K varies
+    printed = {float(f[0]): (int(f[1]), dict(zip(labels, map(float, f[2:-1]))), f[-1])
+               for f in map(str.split, lines) if len(f) == len(labels) + 3}
     assert sorted(printed) == sorted({r["ratio"] for r in rows})
     for r in rows:
         n, shares, bistable = printed[r["ratio"]]
@@ -371,3 +371,188 @@ def test_overlay_reads_series_with_errors_and_missing_cells(tmp_path):
     assert math.isnan(s["b"][1][0]) and s["b"][2] is None
     with pytest.raises(ConfigError, match="cannot read"):
         read_overlay(tmp_path / "missing.csv")
+
+
+# ---------------------------------------------------------------- against the swept variable
+# Ω swept at one K: the table and the figures run against Ω, not five dots stacked at K.
+OMEGA_SWEEP = ("sweep", PRESET, "--plate-rpm", "100,150,200", "--ratio", -1, "--duration", 0.1, "--workers", 2)
+
+
+@pytest.fixture(scope="module")
+def omega_sweep(tmp_path_factory):
+    out = tmp_path_factory.mktemp("omega") / "omega.zarr"
+    res = taimill(*OMEGA_SWEEP, "--out", out)
+    assert res.returncode == 0, res.stderr
+    again = taimill(*OMEGA_SWEEP, "--out", out, "--json")  # resumes: every point done
+    assert again.returncode == 0, again.stderr
+    return out, res.stdout, json.loads(again.stdout)
+
+
+def test_a_plate_speed_sweep_is_tabled_and_drawn_against_omega(omega_sweep):
+    from taimill.analysis.sweep import axis_label
+    from taimill.figures.sweep import FIGURES, figure_stems, store_axes, sweep_figure
+
+    path, text, rows = omega_sweep
+    lines = text.splitlines()
+    assert lines[0].startswith("every point:") and "K = -1" in lines[0]  # the fixed K, said once
+    header = lines[1].split()
+    assert header[:3] == ["point", "Ω", "rpm"] and "K" not in header  # Ω is the axis column
+    assert [float(ln.split()[1]) for ln in lines[2:5]] == [100.0, 150.0, 200.0]
+    store = open_sweep(path)
+    table = store.table()
+    axes = store_axes(store, table)
+    assert (axes.x, axes.y, axes.curves) == ("plate_rpm", None, ())
+    _, title, panels, ylabel, scale = FIGURES[2]
+    fig = sweep_figure(table, title, panels, ylabel, scale, axes=axes)
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == axis_label("plate_rpm") and "Ω" in ax.get_xlabel()
+    (line,) = [ln for ln in ax.get_lines() if len(ln.get_xdata()) == 3]
+    assert list(line.get_xdata()) == [100.0, 150.0, 200.0]
+    assert list(line.get_ydata()) == pytest.approx([r["impact_power"] for r in rows])
+    assert "map_impact_power" not in figure_stems(table)
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+
+
+def test_sweep_rows_and_table_carry_regime_class_wall_lag_and_power(omega_sweep):
+    from taimill.analysis.regime import MAP_REGIMES
+
+    path, text, rows = omega_sweep
+    header = text.splitlines()[1]
+    for h in ("wall lag", "regime", "class", "P_I W", "P_diss W"):
+        assert h in header
+    assert "P_I mill W" in header and "P_diss mill W" in header  # the default mill, the P 4: two stations
+    table = open_sweep(path).table()
+    for r in rows:
+        assert r["regime_class"] in (*MAP_REGIMES, "unknown") and "wall_lag" in r and "slip_ratio" in r
+        assert r["units"]["wall_lag"] == "1" and r["stations"] == 2
+        assert r["impact_power_mill"] == 2 * r["impact_power"]
+        assert numbers_without_unit(r) == []
+    assert {"regime_class", "wall_lag", "slip_ratio", "dissipated_power"} <= set(table)
+
+
+def test_a_plate_speed_by_k_sweep_is_drawn_as_a_map(tmp_path):
+    from matplotlib.collections import QuadMesh
+
+    from taimill.figures.sweep import figure_stems, store_axes
+    from taimill.figures.sweep_map import map_figure
+
+    out = tmp_path / "map.zarr"
+    res = taimill("sweep", PRESET, "--plate-rpm", "100,200", "--ratio", "-1,-2.5", "--duration", 0.1, "--workers", 2,
+                  "--out", out)
+    assert res.returncode == 0, res.stderr
+    header = res.stdout.splitlines()[1].split()
+    assert header[:4] == ["point", "Ω", "rpm", "K"]  # both axes vary: both are columns
+    store = open_sweep(out)
+    table = store.table()
+    axes = store_axes(store, table)
+    assert (axes.x, axes.y, axes.curves) == ("ratio", "plate_rpm", ("plate_rpm",))  # equal counts: K across, Ω up
+    assert {"map_impact_power", "map_dissipated_power"} <= set(figure_stems(table))
+    fig = map_figure(table, "impact_power", "impact power (W)", 1.0, axes)
+    ax = fig.axes[0]
+    assert "K" in ax.get_xlabel() and "Ω" in ax.get_ylabel()
+    (mesh,) = [c for c in ax.collections if isinstance(c, QuadMesh)]
+    assert mesh.get_array().size == 4  # 2 × 2 cells, the replicas' mean each
+    assert np.nanmax(mesh.get_array()) == pytest.approx(max(table["impact_power"]))
+    assert any(ln.get_marker() in ("s", "^", "o", ">", "D", "x") for ln in ax.get_lines())  # regime class markers
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    names = sorted(p.name for p in report_sweep(out, tmp_path / "fig"))
+    assert "map_impact_power.png" in names and "regimes.png" in names
+
+
+def test_sweep_axes_are_derived_from_the_points():
+    from taimill.analysis.sweep import sweep_axes, varying_axes
+
+    n = 6
+    base = {"point": np.arange(n), "seed": np.arange(n), "replica": np.zeros(n, int), "jar": np.array(["CY"] * n),
+            "balls": np.full(n, 12), "plate_rpm": np.full(n, 200.0), "ratio": np.full(n, -2.0)}
+    # a pair sweep: its coefficients vary with it, one axis named by the pair
+    t = base | {"pair_name": np.array(["steel-steel", "steel-fluorite"] * 3), "mu": np.array([0.5, 0.2] * 3),
+                "pair": np.array(["steel-steel", "steel-fluorite"] * 3), "ratio": np.repeat([-1.0, -2.0, -3.0], 2)}
+    ax = sweep_axes(t)
+    assert (ax.x, ax.curves) == ("ratio", ("pair_name",)) and "jar" in ax.fixed
+    # a μ sweep: the pair's label changes with μ, the axis is μ; ball count × K: the longer is x
+    t = base | {"mu": np.linspace(0.1, 0.6, n), "pair": np.array([f"steel-steel, μ {m:g}" for m in np.linspace(0.1, 0.6, n)])}
+    assert varying_axes(t) == ["mu"] and sweep_axes(t).x == "mu"
+    t = base | {"balls": np.repeat([6, 12], 3), "ratio": np.tile([-1.0, -2.0, -3.0], 2)}
+    ax = sweep_axes(t)
+    assert (ax.x, ax.y) == ("ratio", "balls")
+    # an unknown text axis (a mill): one curve per value; only text axes: the first is x
+    t = base | {"mill": np.repeat(["P 4", "PM 100"], 3), "ratio": np.tile([-1.0, -2.0, -3.0], 2)}
+    assert sweep_axes(t).curves == ("mill",)
+    t = base | {"maker_model": np.array(["a", "b", "c"] * 2)}
+    ax = sweep_axes(t, ["maker_model"])
+    assert ax.x == "maker_model" and ax.text_x
+
+
+def test_sweep_prints_every_distinct_warning_once_before_running(monkeypatch):
+    import dataclasses
+
+    import inprocess
+    import taimill.runs.sweep as sweep
+
+    real_plan = sweep.plan
+
+    def plan(req, ratios_for=None):
+        points = real_plan(req, ratios_for)
+        for n, p in enumerate(points):
+            p["preset"] = dataclasses.replace(p["preset"], warnings=("plate radius is an estimate", f"odd point {n % 2}"))
+        return points
+
+    def run_sweep(*a, **k):
+        raise KeyboardInterrupt("stopped by the test")
+
+    monkeypatch.setattr(sweep, "plan", plan)
+    monkeypatch.setattr(sweep, "run_sweep", run_sweep)
+    code, out, err = inprocess.main("sweep", ROOT / PRESET, "--ratio", "-1,-2,-3", "--duration", 0.1)
+    assert code == 130
+    lines = err.splitlines()
+    warned = [ln for ln in lines if ln.startswith("taimill: warning:")]
+    assert warned == ["taimill: warning: plate radius is an estimate", "taimill: warning: odd point 0",
+                      "taimill: warning: odd point 1"]
+    assert lines.index(warned[-1]) < lines.index("taimill: stopped by the test")
+
+
+def test_sweep_table_adds_the_whole_mill_where_the_points_name_their_stations():
+    from taimill.cli.sweep import sweep_table
+
+    rows = [{"point": i, "jar": "CY", "balls": 12, "pair": "steel-steel", "plate_rpm": rpm, "ratio": -1.0, "seed": 1,
+             "impact_power": 0.1 * i, "dissipated_power": 0.02, "regime": "cataracting", "regime_class": "cataracting",
+             "wall_lag": 0.5} for i, rpm in enumerate((100.0, 200.0))]
+    alone = sweep_table(rows)
+    assert "mill" not in alone and "Ω rpm" in alone.splitlines()[1]
+    milled = sweep_table([r | {"stations": 4, "impact_power_mill": 4 * r["impact_power"],
+                               "dissipated_power_mill": 0.08} for r in rows])
+    header = milled.splitlines()[1]
+    assert "P_I mill W" in header and "P_diss mill W" in header and "(4 stations)" in milled.splitlines()[-1]
+
+
+def test_text_axes_are_curves_with_one_legend_entry_each_or_categories_on_x():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from taimill.figures.sweep import FIGURES, sweep_figure
+
+    n = 6
+    geometry = {"plate_radius": np.full(n, 0.125), "ball_radius": np.full(n, 0.006), "regime": np.array(["cataracting"] * n),
+                "point": np.arange(n), "balls": np.full(n, 12), "plate_rpm": np.full(n, 200.0), "mean_se": np.linspace(1e-3, 2e-3, n)}
+    # jars × K: K across, one curve per jar, each once in the legend
+    t = geometry | {"jar": np.repeat(["CY", "HM"], 3), "jar_radius": np.repeat([0.0325, 0.034], 3),
+                    "ratio": np.tile([-1.0, -2.0, -3.0], 2)}
+    _, title, panels, ylabel, scale = FIGURES[0]
+    fig = sweep_figure(t, title, panels, ylabel, scale)
+    labels = fig.axes[0].get_legend_handles_labels()[1]
+    assert [lab for lab in labels if lab in ("CY", "HM")] == ["CY", "HM"] and "K" in fig.axes[0].get_xlabel()
+    plt.close(fig)
+    # jars alone at one K: the jars are the x axis, as categories
+    t = geometry | {"jar": np.array(["CY", "HM", "T"] * 2), "jar_radius": np.array([0.0325, 0.034, 0.03] * 2),
+                    "ratio": np.full(n, -2.0)}
+    fig = sweep_figure(t, title, panels, ylabel, scale)
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "jar" and [tk.get_text() for tk in ax.get_xticklabels()] == ["CY", "HM", "T"]
+    plt.close(fig)

@@ -306,7 +306,8 @@ async def test_side_panel_fits_120_columns(mill, tmp_path):
     app = MillApp(mill, out_dir=tmp_path, paused=True)
     async with app.run_test(size=SIZE) as pilot:
         lines = str(app.readouts.render()).splitlines()
-        assert lines[-1].startswith("regime") and len(lines) <= app.readouts.size.height  # no row cut off
+        assert lines[-2].startswith("regime") and lines[-1].startswith("  class")  # the regime-map class under it
+        assert len(lines) <= app.readouts.size.height  # no row cut off
         assert max(map(len, lines)) <= app.readouts.size.width
         # long numbers in the history captions: the range gets fewer digits, never cut
         app.history_plots.show({"impact_power": [0.1189, 15.05], "mean_se": [3.396e-4, 4.452e-3],
@@ -381,3 +382,15 @@ def test_pacing_gives_the_simulation_the_rest_of_each_frame_interval():
     assert pace(0.03, 1.0, 1.0)[0] == STRETCH_BOUNDS[0]
     assert pace(0.19, 0.0, 0.0)[0] == STRETCH_BOUNDS[1]
     assert pace(0.05, None, None) == (0.05, None)  # nothing measured yet: unchanged
+
+
+def test_the_header_names_the_mill_when_the_preset_has_one():
+    from types import SimpleNamespace
+
+    from taimill.tui.readouts import mill_name, title
+
+    def preset(config):
+        return SimpleNamespace(source="presets/p4-cy-steel.toml", as_dict=lambda: config)
+
+    assert title(preset({"mill": {"name": "Pulverisette 4", "stations": 2}})) == "p4-cy-steel.toml · Pulverisette 4"
+    assert title(preset({})) == "p4-cy-steel.toml" and mill_name(preset({"mill": {"stations": 2}})) is None

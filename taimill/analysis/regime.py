@@ -45,6 +45,7 @@ import numpy as np
 
 from taimill.analysis.contacts import MAX_PAIRWISE
 from taimill.analysis.rungeometry import SIDE, RunGeometry
+from taimill.schema import REGIME_CLASSES
 
 ROLLING_WALL, ROLLING_FLIGHT = 0.5, 0.35
 CATARACT_FLIGHT = 0.55
@@ -186,7 +187,7 @@ class RegimeFeatures:
 # frame (wall_lag near 1) is a *sliding bed* when the wall slides under it (slip ratio
 # ≥ SLIDING_SLIP) and a *rolling bed* when its balls roll in place, their contact
 # points moving with the wall (no slip, so by the slip ratio alone it looked pinned).
-MAP_REGIMES = ("cascading", "cataracting", "pinned ring", "sliding bed", "rolling bed")
+MAP_REGIMES = REGIME_CLASSES  # taimill.schema: the summary's regime_class takes these values
 SLIDING_SLIP = 0.1  # slip_ratio at and above which a riding charge is a sliding bed
 # wall_lag below which a riding charge turns with the jar (pinned ring). Measured (CY,
 # 8 s runs, window 4–8 s): steel pinned rings −0.020 (K = −3.6) and −0.028 (−4.0);

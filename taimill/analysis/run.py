@@ -80,6 +80,7 @@ class RunAnalysis:
             "dissipated_power": energy["dissipated_power"],
             "energy_balance_error": energy["energy_balance_error"],
             "drive_work": energy["drive_work"],
+            **p["mill_power"],
             "g_r": {"r_edges": edges.tolist(), "g": self.density.g.tolist()},
             "randomness_index": p["randomness_index"],
             **p["regime"],

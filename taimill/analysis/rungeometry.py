@@ -29,6 +29,8 @@ class RunGeometry:
     jar: Ramp  #: absolute jar spin w(t), rad/s
     analysis_start: float  #: s, a TUI recording's start (`live_start_time`), else the preset's
     duration: float  #: s
+    wall_mu_d: float = math.nan  #: ball-wall dynamic friction μ_d (the slip ratio's scale)
+    stations: int | None = None  #: jars on the mill's plate, from the config's `mill`; None: not known
 
     @classmethod
     def from_config(cls, config: dict, radii) -> "RunGeometry":
@@ -45,6 +47,8 @@ class RunGeometry:
             jar=spin,
             analysis_start=float(config.get("live_start_time", config.get("analysis_start", 0.0))),
             duration=float(config.get("duration", math.inf)),
+            wall_mu_d=float((config.get("wall_friction") or config.get("friction") or {}).get("mu_d", math.nan)),
+            stations=stations_of(config),
         )
 
     @property
@@ -107,6 +111,16 @@ class RunGeometry:
         ang, arc = self._unrolled
         a = np.interp(s, arc, ang)
         return np.degrees(np.mod(a + math.pi, 2 * math.pi) - math.pi)
+
+
+def stations_of(config: dict) -> int | None:
+    """The mill's station count (jars on its plate) from a resolved config's `mill`
+    table; None where the config names no mill or no whole count ≥ 1 (never guessed)."""
+    mill = config.get("mill")
+    n = mill.get("stations") if isinstance(mill, dict) else None
+    if isinstance(n, bool) or not isinstance(n, (int, float)) or not math.isfinite(n) or n != int(n) or n < 1:
+        return None
+    return int(n)
 
 
 def reach_radius(g: RunGeometry, theta: np.ndarray, iterations: int = 40) -> np.ndarray:

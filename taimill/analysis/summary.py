@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from taimill.analysis.events import EventStats
-from taimill.analysis.regime import RegimeFeatures
+from taimill.analysis.regime import RegimeFeatures, map_regime, slip_ratio
 from taimill.analysis.rungeometry import RunGeometry
 from taimill.analysis.spatial import RadialDensity, WallMap
 from taimill.analysis.theory import single_ball_hit
@@ -94,6 +94,29 @@ def mechanism_powers(power: np.ndarray) -> dict:
     return out
 
 
+def regime_class(regime: dict, energy: dict, g: RunGeometry, n_balls: int) -> dict:
+    """The run's regime split as the regime map splits it (taimill.analysis.regime):
+    `wall_lag` (from the criteria), `slip_ratio` of the persistent side-wall friction
+    power, and `regime_class`, one of MAP_REGIMES (cascading, cataracting, pinned
+    ring, sliding bed, rolling bed) or "unknown"."""
+    side = (energy.get("dissipation_by_mechanism") or {}).get("side", {}).get("persistent", {})
+    row = {"plate_rpm": g.drive.plate_rpm, "mu_d_wall": g.wall_mu_d, "balls": n_balls, "ball_mass": g.ball_mass,
+           "plate_radius": g.plate_radius, "jar_radius": g.jar_radius, "ratio": g.ratio,
+           "dissipated_power_side_persistent_friction": side.get("friction", math.nan)}
+    slip = slip_ratio(row)
+    lag = regime.get("regime_criteria", {}).get("wall_lag", math.nan)
+    return {"regime_class": map_regime(regime.get("regime", "unknown"), slip, lag), "wall_lag": lag, "slip_ratio": slip}
+
+
+def mill_power(event_stats: dict, energy: dict, stations: int | None) -> dict:
+    """The whole mill's impact and dissipated power (W): a run simulates one jar, the
+    mill turns `stations` alike; {} when the station count is not known."""
+    if not stations:
+        return {}
+    return {"stations": stations, "impact_power_mill": stations * event_stats.get("impact_power", math.nan),
+            "dissipated_power_mill": stations * energy.get("dissipated_power", math.nan)}
+
+
 class Summary:
     """The accumulators of the run summary over the window t0 ≤ t < t1 (s; t1 = inf for a
     stream, whose end is not known yet) and the summary keys they give.
@@ -142,13 +165,16 @@ class Summary:
         """The summary over [t0, t1] (t1: s, the window's end) by accumulator, named as
         `taimill analyse` reports them: `event_estimator`, `all_contacts_estimator`,
         `energy` (the ledger's keys), `randomness_index`, `regime` (the regime keys),
-        `wear_hot_spot`, `critical_ratio`, `single_ball_hit`; those not accumulated are
-        left out."""
+        `wear_hot_spot`, `critical_ratio`, `single_ball_hit`, `mill_power` (the whole
+        mill's, when the config names its stations); those not accumulated are left
+        out. The regime keys include the regime_class split."""
         tau = max(t1 - self.t0, 0.0)
         g = self.geom
         out = {"event_estimator": self.stats.result(tau, g.volume, self.n_balls), "energy": self.ledger.result(tau)}
         if self.regime:
             out["regime"] = self.regime.result()
+            out["regime"].update(regime_class(out["regime"], out["energy"], g, self.n_balls))
+        out["mill_power"] = mill_power(out["event_estimator"], out["energy"], g.stations)
         if self.whole_run:
             out["all_contacts_estimator"] = self.all_contacts.result(tau, g.volume, self.n_balls)
             out["randomness_index"] = self.density.randomness_index
@@ -160,7 +186,9 @@ class Summary:
 
     def result(self, t1: float) -> dict:
         """The summary keys (docs/outputs.md) over [t0, t1] (t1: s): the stress-event
-        statistics, `all_contacts`, `events_total`, the energy keys, `randomness_index`,
+        statistics, `all_contacts`, `events_total`, the energy keys, the whole mill's
+        power (`stations`, `impact_power_mill`, `dissipated_power_mill`, when the config
+        names its stations), `randomness_index`,
         the regime keys with `side_wall_fraction`, `wear_hot_spot`, `critical_ratio`,
         `single_ball_se`, `analysis_window` and `sim_seconds`, in that order; those not
         accumulated are left out."""
@@ -170,6 +198,7 @@ class Summary:
             out["all_contacts"] = p["all_contacts_estimator"]
             out["events_total"] = self.events_total
         out.update(p["energy"])
+        out.update(p["mill_power"])
         if self.whole_run:
             out["randomness_index"] = p["randomness_index"]
         if self.regime:

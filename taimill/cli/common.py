@@ -123,9 +123,10 @@ def add_overrides(p, live: bool = False):
     g.add_argument("--law", help=LAW_HELP)
 
 
-def print_warnings(preset) -> None:
-    """The preset's warnings (estimates, assumptions, implausible values), one line each on stderr."""
-    for w in preset.warnings:
+def print_warnings(*presets) -> None:
+    """The presets' warnings (estimates, assumptions, implausible values), one line each
+    on stderr, each distinct warning once (a sweep's points mostly share theirs)."""
+    for w in dict.fromkeys(w for p in presets for w in p.warnings):
         print(f"taimill: warning: {w}", file=sys.stderr)
 
 
@@ -140,7 +141,8 @@ def _fmt(value, scale):
 
 
 def summary_table(s: dict) -> str:
-    rows = [(label, _fmt(s.get(key), scale), unit) for key, label, unit, scale in SUMMARY_ROWS if key in s]
+    rows = [(label.format(stations=s.get("stations")), _fmt(s.get(key), scale), unit)
+            for key, label, unit, scale in SUMMARY_ROWS if key in s]
     w = max(len(r[0]) for r in rows)
     text = "\n".join(f"{label:<{w}}  {value:>12} {unit}" for label, value, unit in rows)
     return _counted_line(s) + text + _main_sink_line(s.get("main_sink") or {}) + _hot_spot_line(s.get("wear_hot_spot") or {})

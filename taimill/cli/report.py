@@ -83,12 +83,17 @@ def cmd_report(a) -> int:
     out = a.out or str(Path(a.run)).rstrip("/").removesuffix(".zarr") + "-report"
     out = check_output(out, "--out", overwrite=None, folder=True)
     if _is_sweep(a.run):
-        from taimill.figures.sweep import FIGURES, read_overlay, report_sweep
+        from taimill.figures.sweep import figure_stems, read_overlay, report_sweep
+        from taimill.store.sweep import open_sweep
 
-        stems = [f[0] for f in FIGURES] + ["regimes"] + (["overlay"] if a.overlay else [])
-        _refuse_existing(out, stems, a)
         if a.overlay:
-            read_overlay(a.overlay)  # its errors before any figure is drawn
+            read_overlay(a.overlay)  # its errors before the store is read or any figure drawn
+        try:  # maps too where two numeric axes vary
+            table = open_sweep(a.run).table()
+        except ConfigError:  # also StoreError: said by report_sweep, after the --out checks
+            table = {}
+        stems = figure_stems(table, bool(a.overlay))
+        _refuse_existing(out, stems, a)
         paths = report_sweep(a.run, out, a.format, overlay=a.overlay)
         _mark(out, paths)
     else:
@@ -187,10 +192,14 @@ def text_report(q: dict) -> str:
         lines.append(f"sampled estimator unavailable: {s['error']}")
     crit = ", ".join(f"{k} {v:.3f}" for k, v in q["regime_criteria"].items())
     h = q["wear_hot_spot"]
-    lines += [f"stress-event rate {_f(e.get('collision_rate'), 1, ' /s')}; dissipated power {_f(q['dissipated_power'], 1, ' W')}; "
-              f"energy balance error {_f(q['energy_balance_error'], 100, ' %')}",
-              f"randomness index 1/σ {_f(q['randomness_index'])}",
-              f"regime {q['regime']} (confidence {_f(q['regime_confidence'])}; {crit})",
+    lines += [f"stress-event rate {_f(e.get('collision_rate'), 1, ' /s')}; dissipated power {_f(q['dissipated_power'], 1, ' W')} "
+              f"(one jar); energy balance error {_f(q['energy_balance_error'], 100, ' %')}"]
+    if q.get("stations"):
+        lines.append(f"whole mill ({q['stations']} stations): impact power {_f(q.get('impact_power_mill'), 1, ' W')}, "
+                     f"dissipated power {_f(q.get('dissipated_power_mill'), 1, ' W')}")
+    lines += [f"randomness index 1/σ {_f(q['randomness_index'])}",
+              f"regime {q['regime']}, class {q.get('regime_class', '–')} (confidence {_f(q['regime_confidence'])}; "
+              f"slip ratio {_f(q.get('slip_ratio'))}; {crit})",
               f"critical ratio K_c {q['critical_ratio']:.3f}; one-ball hit energy {_f(q['single_ball_hit']['se'], 1e3, ' mJ')}"]
     if h.get("surface"):
         lines.append(f"wear hot spot: {h['surface']} at {h['angle_deg']:.0f}°"

@@ -15,14 +15,17 @@ from taimill.errors import ConfigError
 
 REFINE_METRICS = ("mean_se", "mean_se_normal", "mean_se_tangential", "impact_power", "impact_power_normal",
                   "impact_power_tangential", "randomness_index", "normal_fraction", "collision_rate", "dissipated_power")
-# (column, header, scale, format)
-COLUMNS = (("point", "point", 1, "d"), ("jar", "jar", None, "s"), ("balls", "balls", 1, "d"), ("pair", "pair", None, "s"),
-           ("plate_rpm", "Ω rpm", 1, "g"), ("ratio", "K", 1, "g"), ("seed", "seed", 1, "d"),
+# The printed table: the point, its swept values (point_columns: the axes that vary,
+# taimill.analysis.sweep.sweep_axes), then these (column, header, scale, format). Powers
+# are of one jar; "mill" columns the whole mill's (stations × one jar), where the
+# point's stored config names the mill's stations.
+COLUMNS = (("seed", "seed", 1, "d"),
            ("mean_se", "SE mJ", 1e3, ".4g"), ("mean_se_normal", "SE_n mJ", 1e3, ".4g"),
            ("mean_se_tangential", "SE_t mJ", 1e3, ".4g"), ("impact_power", "P_I W", 1, ".4g"),
-           ("randomness_index", "1/σ", 1, ".3g"), ("regime", "regime", None, "s"), ("wall_seconds", "wall s", 1, ".1f"))
-GROUP_COLUMNS = (("jar", "jar", None, "s"), ("balls", "balls", 1, "d"), ("pair", "pair", None, "s"),
-                 ("plate_rpm", "Ω rpm", 1, "g"), ("ratio", "K", 1, "g"), ("replicas", "replicas", 1, "d"))
+           ("impact_power_mill", "P_I mill W", 1, ".4g"), ("dissipated_power", "P_diss W", 1, ".4g"),
+           ("dissipated_power_mill", "P_diss mill W", 1, ".4g"), ("randomness_index", "1/σ", 1, ".3g"),
+           ("wall_lag", "wall lag", 1, ".3g"), ("regime", "regime", None, "s"), ("regime_class", "class", None, "s"),
+           ("wall_seconds", "wall s", 1, ".1f"))
 
 
 def register(subparsers) -> None:
@@ -96,16 +99,18 @@ def request(a):
 
 
 def cmd_sweep(a) -> int:
-    from taimill.cli.common import plain as _plain, stderr_console as _stderr_console
+    from taimill.cli.common import plain as _plain, print_warnings, stderr_console as _stderr_console
     from taimill.schema import with_units
     from taimill.figures import is_figure
     from taimill.model.files import check_output, reads
+    from taimill.analysis.sweep import axis_header
     from taimill.runs.sweep import content, plan, run_sweep
     from taimill.store.sweep import writing
 
     req, run_kw = request(a)
     with reads() as inputs:
         points = plan(req)  # every point validated before a store is touched or a kernel runs
+    print_warnings(*(p["preset"] for p in points))  # every distinct one once, before anything runs
     if a.out:  # its folder must exist and be writable (an existing store: the store's own rules)
         check_output(a.out, "--out", overwrite=None)
     if a.map:
@@ -125,7 +130,8 @@ def cmd_sweep(a) -> int:
                 rows, peaks = run_sweep(req, store, progress=lambda d, t: bar.update(task, completed=d, total=t), **run_kw)
         else:
             rows, peaks = run_sweep(req, store, **run_kw)
-    rows, groups = with_regimes(rows)
+    axes = sweep_axes_of(rows, points)
+    rows, groups = with_regimes(rows, axes)
     if a.map:
         from taimill.figures.regime_map import save_regime_map
 
@@ -135,10 +141,11 @@ def cmd_sweep(a) -> int:
         for p in peaks:
             print(peak_line(p), file=sys.stderr)
         return 0
-    print(table(rows))
+    print(sweep_table(rows, axes))
     if max(g["replicas"] for g in groups) > 1:
-        print("\nregimes of the replicas (share per K; bistable: they end in different regimes, so their mean mixes states)")
-        print(regime_table(groups))
+        print(f"\nregimes of the replicas (share per {axis_header(axes.x)}; bistable: they end in different regimes, "
+              "so their mean mixes states)")
+        print(regime_table(groups, axes))
     for p in peaks:
         print(peak_line(p))
     if a.out:
@@ -146,26 +153,76 @@ def cmd_sweep(a) -> int:
     return 0
 
 
-def with_regimes(rows: list[dict]) -> tuple[list[dict], list[dict]]:
-    """(each row with `regime_fractions` and `bistable` of its curve and K, the groups
-    of taimill.analysis.sweep.regime_fractions over the rows in the rows' order)."""
-    import numpy as np
+def sweep_axes_of(rows: list[dict], points=()):
+    """taimill.analysis.sweep.sweep_axes of the rows, the planned points' value columns
+    as candidates."""
+    from taimill.analysis.sweep import sweep_axes
 
-    from taimill.analysis.sweep import CURVE_COLUMNS, regime_fractions
-
-    def key(r):  # K rounded as regime_fractions rounds it
-        return (*(r.get(c, "") for c in CURVE_COLUMNS), float(np.round(float(r["ratio"]), 10)))
-
-    groups = regime_fractions({c: [r.get(c, "") for r in rows] for c in (*CURVE_COLUMNS, "ratio", "regime")})
-    by_key = {key(g): g for g in groups}
-    ordered = [by_key[k] for k in dict.fromkeys(map(key, rows))]
-    return [r | {k: by_key[key(r)][k] for k in ("regime_fractions", "bistable")} for r in rows], ordered
+    return sweep_axes(columns_of(rows), [k for p in list(points)[:1] for k in p["values"]])
 
 
-def regime_table(groups: list[dict]) -> str:
-    """One line per curve and K: replicas, share in each regime, bistable yes/no."""
+def columns_of(rows: list[dict]) -> dict:
+    """The rows as a table of columns (None where a row lacks one)."""
+    names = dict.fromkeys(k for r in rows for k in r)
+    return {c: [r.get(c) for r in rows] for c in names}
+
+
+def with_regimes(rows: list[dict], axes=None) -> tuple[list[dict], list[dict]]:
+    """(each row with `regime_fractions` and `bistable` of its curve and x value (the
+    swept axes: sweep_axes_of(rows) unless given), the groups of
+    taimill.analysis.sweep.regime_fractions over the rows in the rows' order)."""
+    from taimill.analysis.sweep import codes, regime_fractions
+
+    axes = axes or sweep_axes_of(rows)
+    cols = axes.columns
+    table = columns_of(rows)
+    table["regime"] = [r.get("regime", "") for r in rows]
+    xs = codes(table[axes.x])
+
+    def key(i, r):  # x as regime_fractions codes it (numbers rounded), the curve as it is
+        return (*(r.get(c) for c in cols[:-1]), xs[i])
+
+    groups = regime_fractions(table, cols)
+    by_key = {tuple(g[c] for c in cols): g for g in groups}
+    keys = [key(i, r) for i, r in enumerate(rows)]
+    ordered = [by_key[k] for k in dict.fromkeys(keys)]
+    return [r | {k: by_key[kk][k] for k in ("regime_fractions", "bistable")} for r, kk in zip(rows, keys)], ordered
+
+
+def point_columns(axes) -> tuple:
+    """(column, header, scale, format) of the point and of its swept values: the axes
+    that vary (curves, then x), each headed by its symbol and unit ("Ω rpm")."""
+    from taimill.analysis.sweep import axis_header, axis_scale
+
+    return (("point", "point", 1, "d"),) + tuple((c, axis_header(c), axis_scale(c), "g") for c in axes.columns)
+
+
+def headline(rows: list[dict], axes) -> str:
+    """What every point shares: "CY, 12 balls, steel-steel, K = -2.6"."""
+    from taimill.analysis.sweep import value_text
+
+    return ", ".join(value_text(c, rows[0][c]) for c in axes.fixed if c in rows[0])
+
+
+def sweep_table(rows: list[dict], axes=None) -> str:
+    """The printed sweep: a line of what every point shares, then one line per point ×
+    replica against the swept values; the whole mill's station counts below."""
+    axes = axes or sweep_axes_of(rows)
+    fixed = headline(rows, axes)
+    text = (f"every point: {fixed}\n" if fixed else "") + table(rows, point_columns(axes) + COLUMNS)
+    stations = sorted({r["stations"] for r in rows if isinstance(r.get("stations"), (int, float)) and r["stations"] > 0})
+    if stations:
+        text += (f"\npowers of one jar; 'mill' columns: the whole mill, stations × one jar "
+                 f"({', '.join(f'{n:g}' for n in stations)} stations)")
+    return text
+
+
+def regime_table(groups: list[dict], axes=None) -> str:
+    """One line per curve and x value: replicas, share in each regime, bistable yes/no."""
     labels = list(dict.fromkeys(lab for g in groups for lab in g["regime_fractions"]))
-    cols = GROUP_COLUMNS + tuple((lab, lab, 1, ".2f") for lab in labels) + (("bistable", "bistable", None, "s"),)
+    head = point_columns(axes or sweep_axes_of(groups))[1:]
+    cols = (*head, ("replicas", "replicas", 1, "d"), *((lab, lab, 1, ".2f") for lab in labels),
+            ("bistable", "bistable", None, "s"))
     flat = [g | g["regime_fractions"] | {"bistable": "yes" if g["bistable"] else "no"} for g in groups]
     return table(flat, cols)
 
@@ -185,7 +242,7 @@ def table(rows: list[dict], columns=COLUMNS) -> str:
 def _cell(v, scale, fmt) -> str:
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "-" if v is None else str(v)
-    if scale is None:
+    if scale is None or isinstance(v, str):
         return str(v)
     return format(int(v) if fmt == "d" else v * scale, fmt)
 

@@ -1,15 +1,19 @@
 """Figures of a sweep store (NumPy + matplotlib, from its summary table), like the
-thesis' Figs 3.7, 3.8, 4.5, 4.13, 5.1 and 5.5: figures against K = ω/Ω + 1, one curve
-per Ω / pair / jar / ball count, the replicas' mean with its 95 % Student-t band, the
-single-ball critical ratio K_c (docs/model.md) marked, the refined maximum starred.
-Where the replicas at a K end in different motion regimes (bistable, e.g. pinned to
+thesis' Figs 3.7, 3.8, 4.5, 4.13, 5.1 and 5.5: figures against the swept variable
+(taimill.analysis.sweep.sweep_axes: K for a K sweep, the plate speed Ω for a sweep over
+--plate-rpm at one K, the ball count, μ, …), one curve per value of every other swept
+axis (jar, pair, material, mill, Ω …), the replicas' mean with its 95 % Student-t band;
+against K the single-ball critical ratio K_c (docs/model.md) is marked and the refined
+maximum starred. A sweep over two numeric axes (plate speed × K, as on a free-gear
+mill) is also drawn as maps (taimill.figures.sweep_map).
+Where the replicas at a value end in different motion regimes (bistable, e.g. pinned to
 the wall or cataracting near the collapse) the mean is ringed and each replica drawn
 with its regime's marker; regimes.<fmt> shows the share of the replicas in each regime
-against K.
+against the swept variable.
 
 `--overlay MEASURED.csv` draws a user's measured series against K on a second axis of
-the mean-SE figure (the thesis validates so, with 1/√⟨D⟩ and √ρ, Figs 3.9, 4.17).
-The CSV format (OVERLAY_FORMAT) is plain comma-separated text:
+the mean-SE figure of a K sweep (the thesis validates so, with 1/√⟨D⟩ and √ρ, Figs 3.9,
+4.17). The CSV format (OVERLAY_FORMAT) is plain comma-separated text:
 
     # lines starting with '#' are comments
     ratio,inv_sqrt_D [1/sqrt(nm)],inv_sqrt_D_err,sqrt_rho [1e7/m]
@@ -30,24 +34,31 @@ from pathlib import Path
 
 import numpy as np
 
-from taimill.analysis.theory import critical_ratio
 from taimill.errors import ConfigError
 from taimill.model.files import csv_cells, read_text
-from taimill.analysis.sweep import CURVE_COLUMNS, REGIMES, mean_band, regime_fractions
+from taimill.analysis.sweep import (REGIMES, SweepAxes, axis_label, axis_scale, curves, first_value, mean_band,
+                                    regime_fractions, sweep_axes, value_text, x_values)
+from taimill.figures.sweep_map import MAPS, map_figure, mark_critical
 
-CURVE_AXES = (("mill", "{}"), ("jar", "{}"), ("balls", "{:.0f} balls"), ("pair", "{}"), ("plate_rpm", "Ω = {:g} rpm"))
 # file stem, figure title, [(column, panel title)], y label, scale to the plotted unit
 FIGURES = (
     ("mean_se", "Average stress energy per event (thesis Figs 5.1, 5.5)", [("mean_se", "total")], "mean SE (mJ)", 1e3),
     ("mean_se_components", "Average stress energy, normal and tangential (thesis Figs 3.7b, 4.5)",
      [("mean_se_normal", "normal"), ("mean_se_tangential", "tangential")], "mean SE (mJ)", 1e3),
-    ("impact_power", "Impact power E_I/τ, eq 3.8 (thesis Figs 3.7a, 4.13)", [("impact_power", "total")], "impact power (W)", 1.0),
+    ("impact_power", "Impact power E_I/τ, eq 3.8, one jar (thesis Figs 3.7a, 4.13)", [("impact_power", "total")], "impact power (W)", 1.0),
     ("randomness", "Randomness index 1/σ of g(r), eq 3.9 (thesis Fig 3.8)", [("randomness_index", "1/σ")], "1/σ", 1.0),
     ("normal_fraction", "Normal share of the stress energy", [("normal_fraction", "SE_n / SE")], "normal fraction", 1.0),
 )
 K_LABEL = "K = ω/Ω + 1 (jar spin / plate spin; |K| grows to the right)"
 REGIME_MARKERS = {"cascading": "s", "cataracting": "^", "rolling": "v"}  # any other label: "x"
 MIXED_LABEL = "mean over replicas in different regimes"
+
+
+def figure_stems(table: dict, overlay: bool = False) -> list[str]:
+    """The file stems report_sweep writes for this sweep table."""
+    ax = sweep_axes(table)
+    return ([f[0] for f in FIGURES] + ["regimes"] + ([m[0] for m in MAPS] if ax.y else [])
+            + (["overlay"] if overlay else []))
 
 
 def report_sweep(path, out_dir, fmt: str = "png", overlay=None) -> list[Path]:
@@ -65,100 +76,124 @@ def report_sweep(path, out_dir, fmt: str = "png", overlay=None) -> list[Path]:
     table = store.table()
     if not len(table.get("point", [])):
         raise ConfigError("command line", "sweep store", str(path), "has no finished point yet")
+    axes = store_axes(store, table)
+    if measured is not None and axes.x != "ratio":
+        raise ConfigError("command line", "--overlay", str(overlay),
+                          f"measured series are drawn against K; this sweep varies {axis_label(axes.x)}")
     peaks = (store.refine or {}).get("peaks", [])
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for stem, title, panels, ylabel, scale in FIGURES:
-        fig = _figure(table, title, panels, ylabel, scale, peaks)
+        fig = sweep_figure(table, title, panels, ylabel, scale, peaks, axes=axes)
         written.append(_save(fig, out_dir / f"{stem}.{fmt}"))
-    written.append(_save(_regime_figure(table), out_dir / f"regimes.{fmt}"))
+    written.append(_save(_regime_figure(table, axes), out_dir / f"regimes.{fmt}"))
+    if axes.y:
+        for stem, column, label, scale in MAPS:
+            written.append(_save(map_figure(table, column, label, scale, axes), out_dir / f"{stem}.{fmt}"))
     if measured is not None:
-        fig = _figure(table, f"Average stress energy and measured data ({Path(overlay).name})",
-                      [("mean_se", "total")], "mean SE (mJ)", 1e3, peaks, measured)
+        fig = sweep_figure(table, f"Average stress energy and measured data ({Path(overlay).name})",
+                           [("mean_se", "total")], "mean SE (mJ)", 1e3, peaks, measured, axes=axes)
         written.append(_save(fig, out_dir / f"overlay.{fmt}"))
     return written
 
 
-def curves(table: dict) -> dict[str, np.ndarray]:
-    """Label → row indices, one curve per combination of mill, jar, balls, pair and Ω;
-    the label names only the axes that vary across the sweep (a sweep from before mills
-    has no mill column)."""
-    axes = [(k, f) for k, f in CURVE_AXES if k in table]
-    varying = [(k, f) for k, f in axes if len(set(table[k].tolist())) > 1] or [a for a in axes if a[0] != "mill"]
-    keys = [tuple(table[k][i] for k, _ in axes) for i in range(len(table["point"]))]
-    out: dict = {}
-    for i, key in enumerate(keys):
-        label = ", ".join(f.format(table[k][i]) for k, f in varying)
-        out.setdefault(label, []).append(i)
-    return {label: np.array(rows) for label, rows in out.items()}
+def store_axes(store, table) -> SweepAxes:
+    """sweep_axes of a store's table, the stored points' value columns as candidates."""
+    return sweep_axes(table, [k for p in store.plan[:1] for k in p.get("values", {})])
 
 
-def band(table: dict, rows: np.ndarray, column: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Unique K (ascending), replicate mean and 95 % half-width (NaN for one replica)."""
-    k = np.round(table["ratio"][rows].astype(float), 10)
+def band(table: dict, rows: np.ndarray, column: str, x: str = "ratio") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unique x values (ascending; K by default), replicate mean and 95 % half-width (NaN for one replica)."""
+    k = x_values(table, rows, x)
     y = table[column][rows].astype(float) if column in table else np.full(len(rows), np.nan)
     ks = np.unique(k)
     stats = np.array([mean_band(y[k == v])[:2] for v in ks]).reshape(-1, 2)
     return ks, stats[:, 0], stats[:, 1]
 
 
-def _figure(table, title, panels, ylabel, scale, peaks, measured=None):
+def _x_axis(ax, table, axes: SweepAxes):
+    """Label, ticks and direction of the x axis: K falls to the right (|K| grows), as
+    does any axis whose values are all ≤ 0; a text axis gets its values as ticks."""
+    ax.set_xlabel(axis_label(axes.x), fontsize=9)
+    if axes.text_x:
+        names = list(dict.fromkeys(str(c) for c in table[axes.x]))
+        ax.set_xticks(range(len(names)), names, fontsize=8)
+    elif np.all(np.asarray(table[axes.x], dtype=float) <= 0) and not ax.xaxis_inverted():
+        ax.invert_xaxis()
+
+
+def _shown(table, axes: SweepAxes, values):
+    """x values in the shown unit (the ball diameter in mm from its radius in m)."""
+    scale = axis_scale(axes.x)
+    return values if axes.text_x or scale in (None, 1) else values * scale
+
+
+def sweep_figure(table, title, panels, ylabel, scale, peaks=(), measured=None, axes: SweepAxes | None = None):
+    """One figure of the sweep table against axes.x (default sweep_axes(table)): a panel
+    per (column, panel title), a curve per combination of the other varying axes."""
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(panels), figsize=(6.4 * len(panels), 4.6), squeeze=False)
-    groups = curves(table)
-    for ax, (column, panel) in zip(axes[0], panels):
+    axes = axes or sweep_axes(table)
+    fig, plots = plt.subplots(1, len(panels), figsize=(6.4 * len(panels), 4.6), squeeze=False)
+    groups = curves(table, axes)
+    for ax, (column, panel) in zip(plots[0], panels):
         drawn: set[str] = set()
         for n, (label, rows) in enumerate(groups.items()):
-            ks, mean, half = band(table, rows, column)
+            ks, mean, half = band(table, rows, column, axes.x)
+            xs = _shown(table, axes, ks)
             color = f"C{n % 10}"
-            ax.plot(ks, mean * scale, "o-", ms=3.5, color=color, label=label)
+            ax.plot(xs, mean * scale, "o-", ms=3.5, color=color, label=label)
             if np.isfinite(half).any():
-                ax.fill_between(ks, (mean - half) * scale, (mean + half) * scale, color=color, alpha=0.2, lw=0)
-            drawn |= mark_mixed(ax, table, rows, column, scale, color)
+                ax.fill_between(xs, (mean - half) * scale, (mean + half) * scale, color=color, alpha=0.2, lw=0)
+            drawn |= mark_mixed(ax, table, rows, column, scale, color, axes)
         _mixed_legend(ax, drawn)
-        _mark_peaks(ax, peaks, column, scale)
-        _mark_critical(ax, table)
+        if axes.x == "ratio":  # landmarks of K
+            _mark_peaks(ax, peaks, column, scale)
+            mark_critical(ax, table)
         ax.set_title(panel, fontsize=10)
-        ax.set_xlabel(K_LABEL, fontsize=9)
+        _x_axis(ax, table, axes)
         ax.set_ylabel(ylabel)
-        if not ax.xaxis_inverted():
-            ax.invert_xaxis()
         ax.grid(alpha=0.3)
         if measured is not None:
             _overlay(ax, measured)
         ax.legend(fontsize=8, loc="upper left")
-    if any(np.isfinite(band(table, r, panels[0][0])[2]).any() for r in groups.values()):
+    if any(np.isfinite(band(table, r, panels[0][0], axes.x)[2]).any() for r in groups.values()):
         title += " — mean of replicas, 95 % band"
-    if any(g["bistable"] for rows in groups.values() for g in regime_groups(table, rows)):
+    if any(g["bistable"] for rows in groups.values() for g in regime_groups(table, rows, axes)):
         title += "; ringed: replicas in different regimes"
-    fig.suptitle(title, fontsize=11)
+    fixed = ", ".join(value_text(c, first_value(table[c])) for c in axes.fixed if c != axes.x)
+    fig.suptitle(title + (f"\n{fixed}" if fixed else ""), fontsize=11)
     fig.tight_layout()
     return fig
 
 
-def regime_groups(table: dict, rows: np.ndarray) -> list[dict]:
-    """taimill.analysis.sweep.regime_fractions of the table's `rows` (one curve)."""
-    return regime_fractions({c: np.asarray(table[c])[rows] for c in (*CURVE_COLUMNS, "ratio", "regime") if c in table})
+def regime_groups(table: dict, rows: np.ndarray, axes: SweepAxes | None = None) -> list[dict]:
+    """taimill.analysis.sweep.regime_fractions of the table's `rows` (one curve) along
+    axes.x (K by default), each with its x coordinate as `x` (x_values)."""
+    x = axes.x if axes else "ratio"
+    sub = {"x": x_values(table, rows, x), "regime": np.asarray(table["regime"])[rows]}
+    return [g | {x: g["x"]} if x != "x" else g for g in regime_fractions(sub, ("x",))]
 
 
-def mark_mixed(ax, table, rows, column, scale, color) -> set[str]:
-    """At each K of the curve `rows` whose replicas end in different regimes: a ring
-    round the plotted mean and every replica's own value, marked by its regime.
-    Returns the regimes drawn."""
-    k = np.round(table["ratio"][rows].astype(float), 10)
+def mark_mixed(ax, table, rows, column, scale, color, axes: SweepAxes | None = None) -> set[str]:
+    """At each x (K by default) of the curve `rows` whose replicas end in different
+    regimes: a ring round the plotted mean and every replica's own value, marked by its
+    regime. Returns the regimes drawn."""
+    x = axes.x if axes else "ratio"
+    k = x_values(table, rows, x)
     y = table[column][rows].astype(float) * scale if column in table else np.full(len(rows), np.nan)
     labels = np.array([str(v) or "unknown" for v in table["regime"][rows]])
-    ks, mean, _ = band(table, rows, column)
+    ks, mean, _ = band(table, rows, column, x)
+    shown = (lambda v: v) if axes is None else (lambda v: _shown(table, axes, v))
     drawn = set()
-    for g in regime_groups(table, rows):
+    for g in regime_groups(table, rows, axes):
         if not g["bistable"]:
             continue
-        ax.plot([g["ratio"]], mean[ks == g["ratio"]] * scale, "o", ms=12, mfc="none", mec="k", mew=1.2, zorder=4)
-        for regime in sorted(set(labels[k == g["ratio"]])):
-            at = (k == g["ratio"]) & (labels == regime)
-            ax.plot(k[at], y[at], REGIME_MARKERS.get(regime, "x"), ms=5, mfc="none", mec=color, ls="none", zorder=4)
+        ax.plot(shown(np.array([g["x"]])), mean[ks == g["x"]] * scale, "o", ms=12, mfc="none", mec="k", mew=1.2, zorder=4)
+        for regime in sorted(set(labels[k == g["x"]])):
+            at = (k == g["x"]) & (labels == regime)
+            ax.plot(shown(k[at]), y[at], REGIME_MARKERS.get(regime, "x"), ms=5, mfc="none", mec=color, ls="none", zorder=4)
             drawn.add(regime)
     return drawn
 
@@ -172,42 +207,36 @@ def _mixed_legend(ax, drawn: set[str]):
                 label=f"replica ending {regime}")
 
 
-def _regime_figure(table):
-    """Share of the replicas in each regime against K: one panel per regime, one line
-    per curve, ringed where the replicas of a K disagree."""
+def _regime_figure(table, axes: SweepAxes | None = None):
+    """Share of the replicas in each regime against axes.x: one panel per regime, one
+    line per curve, ringed where the replicas at a value disagree."""
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(REGIMES), figsize=(5.2 * len(REGIMES), 4.2), squeeze=False, sharey=True)
-    per_curve = {label: regime_groups(table, rows) for label, rows in curves(table).items()}
+    axes = axes or sweep_axes(table)
+    fig, plots = plt.subplots(1, len(REGIMES), figsize=(5.2 * len(REGIMES), 4.2), squeeze=False, sharey=True)
+    per_curve = {label: regime_groups(table, rows, axes) for label, rows in curves(table, axes).items()}
     any_mixed = any(g["bistable"] for groups in per_curve.values() for g in groups)
-    for ax, regime in zip(axes[0], REGIMES):
+    for ax, regime in zip(plots[0], REGIMES):
         for n, (label, groups) in enumerate(per_curve.items()):
             share = np.array([g["regime_fractions"][regime] for g in groups])
-            ks = np.array([g["ratio"] for g in groups])
+            ks = _shown(table, axes, np.array([g["x"] for g in groups]))
             mixed = np.array([g["bistable"] for g in groups])
             ax.plot(ks, share, "o-", ms=3.5, color=f"C{n % 10}", label=label)
             ax.plot(ks[mixed], share[mixed], "o", ms=12, mfc="none", mec="k", mew=1.2, zorder=4)
         if any_mixed:
             ax.plot([], [], "o", ms=12, mfc="none", mec="k", mew=1.2, label="replicas in different regimes")
-        _mark_critical(ax, table)
+        if axes.x == "ratio":
+            mark_critical(ax, table)
         ax.set_title(regime, fontsize=10)
-        ax.set_xlabel(K_LABEL, fontsize=9)
+        _x_axis(ax, table, axes)
         ax.set_ylim(-0.05, 1.05)
-        ax.invert_xaxis()
         ax.grid(alpha=0.3)
-    axes[0][0].legend(fontsize=8, loc="best")
-    axes[0][0].set_ylabel("share of the replicas")
-    fig.suptitle("Motion regime of the replicas at each K (taimill.analysis.regime)", fontsize=11)
+    plots[0][0].legend(fontsize=8, loc="best")
+    plots[0][0].set_ylabel("share of the replicas")
+    fig.suptitle(f"Motion regime of the replicas at each {axis_label(axes.x).split(' (')[0]} (taimill.analysis.regime)",
+                 fontsize=11)
     fig.tight_layout()
     return fig
-
-
-def _mark_critical(ax, table):
-    """K_c = -√(R_p / (R_jar - r)) for each geometry in the sweep (docs/model.md)."""
-    geoms = {(float(a), float(b), float(c)) for a, b, c in zip(table["plate_radius"], table["jar_radius"], table["ball_radius"])}
-    for n, g in enumerate(sorted(geoms)):
-        kc = critical_ratio(*g)
-        ax.axvline(kc, color="0.3", ls="--", lw=1, label="K_c, one ball" if n == 0 else None)
 
 
 def _mark_peaks(ax, peaks, column, scale):

@@ -30,7 +30,7 @@ from taimill.tui.history import SERIES, History
 from taimill.tui.jarview import JarView
 from taimill.tui.messages import (FrameReady, FrictionRequested, Notice, ReadoutsReady, RebuildRequested, SimFault,
                                   SpeedsRequested)
-from taimill.tui.readouts import Readouts, text_lines
+from taimill.tui.readouts import Readouts, text_lines, title
 from taimill.tui.recorders import Recorders
 from taimill.tui.simloop import SimulationLoop
 
@@ -100,7 +100,7 @@ class MillApp(App):
         yield Footer()
 
     def on_mount(self):
-        self.sub_title = f"{Path(self.mill.preset.source).name} · mill {self.mill.preset.mill.name}"
+        self.sub_title = title(self.mill.preset)  # the preset file and the mill's name
         self._set_jar()
         self._show_now()
         self.set_interval(1.0, self._measure_fps)
@@ -273,11 +273,11 @@ class MillApp(App):
         p = self.mill.preset
         self.out_dir.mkdir(parents=True, exist_ok=True)
         path = self.out_dir / f"taimill-t{f.sim_time:.3f}s-{time.strftime('%Y%m%d-%H%M%S')}.png"
-        title = (f"{Path(p.source).name}: {p.jar.name} jar, {self.mill.n_balls} balls, {p.pair} μ_s {p.friction.mu_s:g} "
+        heading = (f"{title(p)}: {p.jar.name} jar, {self.mill.n_balls} balls, {p.pair} μ_s {p.friction.mu_s:g} "
                  f"μ_d {p.friction.mu_d:g}, Ω = {self.mill.plate_rpm:g} rpm, K = {self.mill.ratio:.4g}")
         history = {k: list(h) for k, h in self.loop.history.items()}
         self._message(f"writing PNG {path} …")
-        self._save_png(path, dict(title=title, outline=p.jar.profile.outline, height=p.jar.height, position=f.position,
+        self._save_png(path, dict(title=heading, outline=p.jar.profile.outline, height=p.jar.height, position=f.position,
                                   radius=self.mill.radius, psi=f.psi, history=history, series=SERIES,
                                   readouts=text_lines(dict(self.last_values)),
                                   time=f.sim_time, window=self.window_seconds))

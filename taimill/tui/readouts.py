@@ -1,11 +1,12 @@
 """Live figures: simulated time and speed, the drive now, and the sliding-window
 summary (stress events: impact power normal/tangential, mean SE, rate; dissipated
-power and its persistent part, energy-balance error, regime with the critical ratio
-K_c; docs/outputs.md)."""
+power and its persistent part, energy-balance error, regime and its regime-map class
+with the critical ratio K_c; docs/outputs.md); the mill's name for the header."""
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 from textual.widgets import Static
@@ -28,6 +29,20 @@ ROWS = tuple((key, label, *_UNITS[key]) for key, label in (
 ))
 
 
+def mill_name(preset) -> str | None:
+    """The name of the mill the preset's jar turns on (its resolved config's `mill`
+    table), None when it names none."""
+    mill = preset.as_dict().get("mill")
+    name = mill.get("name") if isinstance(mill, dict) else None
+    return str(name) if name else None
+
+
+def title(preset) -> str:
+    """The header's subtitle: the preset file, and the mill's name when it names one."""
+    name, mill = Path(preset.source).name, mill_name(preset)
+    return f"{name} · {mill}" if mill else name
+
+
 def number(value, scale=1.0) -> str:
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "—"
@@ -37,12 +52,13 @@ def number(value, scale=1.0) -> str:
 def text_lines(values: dict) -> list[str]:
     """The readouts as plain text lines (for the PNG snapshot)."""
     lines = [f"{label.strip():<22} {number(values.get(key), scale):>10} {unit}" for key, label, unit, scale in ROWS]
-    return lines + [f"{'regime':<22} {values.get('regime', '—'):>10}"]
+    return lines + [f"{'regime':<22} {values.get('regime', '—'):>10}",
+                    f"{'  class (regime map)':<22} {values.get('regime_class', '—'):>10}"]
 
 
 class Readouts(Static):
     DEFAULT_CSS = """
-    Readouts { height: 16; }
+    Readouts { height: 17; }
     """
 
     def __init__(self, window: float, **kw):
@@ -89,4 +105,5 @@ class Readouts(Static):
         for key, label, unit, scale in ROWS:
             rows.append((label, number(v.get(key), scale), unit))
         rows.append(("regime", str(v.get("regime", "—")), ""))
+        rows.append(("  class", str(v.get("regime_class", "—")), ""))  # the regime map's five classes
         self.update("\n".join(f"{a:<18} {b:>11} {c}" for a, b, c in rows), layout=False)

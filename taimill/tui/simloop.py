@@ -103,7 +103,7 @@ class SimulationLoop:
         """The window figures; the regime, when not asked for, is the last one computed."""
         values = self.window.result(regime) or {}
         if regime:
-            self._regime = {k: v for k, v in values.items() if k.startswith("regime")}
+            self._regime = {k: v for k, v in values.items() if k.startswith("regime") or k in ("wall_lag", "slip_ratio")}
         values = self._regime | values
         if "sim_seconds" in values:  # one point per readout in every series, on one time axis
             for k, h in self.history.items():

@@ -34,6 +34,7 @@ from taimill.analysis.theory import critical_ratio
 from taimill.errors import ConfigError
 from taimill.model.files import csv_cells, read_text
 from taimill.analysis.sweep import CURVE_COLUMNS, REGIMES, mean_band, regime_fractions
+from taimill.store.output import whole_file
 
 CURVE_AXES = (("jar", "{}"), ("balls", "{:.0f} balls"), ("pair", "{}"), ("plate_rpm", "Ω = {:g} rpm"))
 # file stem, figure title, [(column, panel title)], y label, scale to the plotted unit
@@ -236,8 +237,11 @@ def _bare(name: str) -> str:
 def _save(fig, path: Path) -> Path:
     import matplotlib.pyplot as plt
 
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    try:
+        with whole_file(path, "figure") as part:
+            fig.savefig(part, dpi=120)
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import sys
+import traceback
 
 
 def register(subparsers):
@@ -61,6 +63,8 @@ def ended(app) -> int:
     if isinstance(fault, ConfigError):  # StoreWriteError (5), a refused value (2)
         print(f"taimill: error: {fault}", file=sys.stderr)
         return fault.exit_code
+    if os.environ.get("TAIMILL_DEBUG"):
+        traceback.print_exception(fault, file=sys.stderr)
     if isinstance(fault, OSError):
         print(f"taimill: error: {fault.filename or 'tui'}: {fault.strerror or fault}", file=sys.stderr)
         return EXIT_WRITE_REFUSED

@@ -18,7 +18,6 @@ import asyncio
 import contextlib
 import importlib
 import math
-import os
 import signal
 import time
 from pathlib import Path
@@ -194,13 +193,10 @@ class MillApp(App):
     def _handle_exception(self, error: Exception) -> None:
         """Textual's hook for an exception nothing handled (in a handler or a worker):
         keep it as the fault, close the recordings and leave; `taimill tui` prints it
-        as one line (TAIMILL_DEBUG=1: Textual's traceback as well)."""
+        as one line (TAIMILL_DEBUG=1: its traceback first)."""
         if isinstance(error, WorkerFailed):
             error = error.error
         self.fault = self.fault or error
-        if os.environ.get("TAIMILL_DEBUG"):
-            super()._handle_exception(error)
-            return
         self._close_recordings("failed: error")
         self.exit(return_code=1)
 

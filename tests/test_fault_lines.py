@@ -125,6 +125,22 @@ def test_a_full_disk_is_one_line_leaves_nothing_and_the_retry_works(name, disk, 
     assert set(outputs) <= set(disk.files())
 
 
+@pytest.mark.parametrize("name", ["jars show", "report"])
+def test_a_refused_permission_is_one_line_and_leaves_nothing(name, run_store, tmp_path, monkeypatch):
+    # root passes every permission check, so the refusal is injected where the file is written
+    from matplotlib.figure import Figure
+
+    def refuse(self, path, *args, **kwargs):
+        raise PermissionError(13, "Permission denied", str(path))
+
+    monkeypatch.setattr(Figure, "savefig", refuse)
+    (tmp_path / "out").mkdir()
+    args, _, _ = FULL_DISK[name]
+    code, _, err = main(*args(tmp_path / "out", run_store, tmp_path))
+    assert code == 5 and "write failed (Permission denied)" in fault_line(err)
+    assert list((tmp_path / "out").iterdir()) == []
+
+
 def test_a_sweep_on_a_full_disk_is_one_line_and_the_retry_works(disk):
     disk.mount("64k")
     disk.fill()

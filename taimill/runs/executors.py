@@ -199,13 +199,21 @@ def _broken(processes: dict, running: dict[int, int], chunks) -> PoolBroken:
         process.join(timeout=5)
         code = process.exitcode
         if code not in (None, 0, -signal.SIGTERM):
-            how = f"killed by {signal.Signals(-code).name}" if code < 0 else f"exit code {code}"
+            how = f"killed by {_signal_name(-code)}" if code < 0 else f"exit code {code}"
+            how += " (out of memory?)" if code == -signal.SIGKILL else ""  # what the kernel's OOM killer sends
             dead.append((pid, how))
     lost: dict[int, list[int]] = {}
     for cid, pid in running.items():
         if pid is not None:
             lost.setdefault(pid, []).extend(j.index for j in chunks[cid])
     return PoolBroken(dead, lost)
+
+
+def _signal_name(number: int) -> str:
+    try:
+        return signal.Signals(number).name
+    except ValueError:
+        return f"signal {number}"
 
 
 def _drain(q, on_progress, running=None):

@@ -307,7 +307,7 @@ def died(broken: PoolBroken, store: SweepStore | None, points: dict[int, dict]) 
         or "a worker process died"
     ran = [i for pid, ids in broken.lost.items() if pid in dead or not dead for i in ids]
     also = [i for pid, ids in broken.lost.items() if dead and pid not in dead for i in ids]
-    text = f"{who} (out of memory?)" + (f" while it ran {named(ran)}" if ran else "")
+    text = who + (f" while it ran {named(ran)}" if ran else "")
     if also:
         text += f"; stopped with it: {named(also)}"
     if store is None:

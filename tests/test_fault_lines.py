@@ -193,6 +193,18 @@ def test_a_killed_sweep_worker_is_one_line_naming_its_point_and_the_sweep_resume
     assert sorted(open_sweep(out).table()["point"]) == [0, 1]
 
 
+def test_the_line_of_a_dead_worker_names_how_it_died_and_the_points():
+    from taimill.runs.executors import PoolBroken
+    from taimill.runs.sweep import died
+
+    points = {0: {"overrides": {"ratio": -2.0, "seed": 0, "duration": 1.0}}, 1: {"overrides": {"ratio": -3.0, "seed": 0}}}
+    assert died(PoolBroken([(12, "killed by SIGKILL (out of memory?)")], {12: [0], 13: [1]}), None, points) == (
+        "sweep: worker process 12 killed by SIGKILL (out of memory?) while it ran point 0 (ratio -2.0, seed 0); "
+        "stopped with it: point 1 (ratio -3.0, seed 0); nothing is stored (no --out)")
+    assert died(PoolBroken([(0, "died (dask KilledWorker)")], {0: [1]}), None, points) == (
+        "sweep: a worker died (dask KilledWorker) while it ran point 1 (ratio -3.0, seed 0); nothing is stored (no --out)")
+
+
 # ---------------------------------------------------------------- the TUI
 def test_an_error_inside_the_tui_is_one_line_and_not_exit_0(tmp_path, monkeypatch):
     from textual.app import App

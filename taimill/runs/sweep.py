@@ -312,8 +312,10 @@ def died(broken: PoolBroken, store: SweepStore | None, points: dict[int, dict]) 
         text += f"; stopped with it: {named(also)}"
     if store is None:
         return f"sweep: {text}; nothing is stored (no --out)"
-    return (f"{store.where}: {text}; {len(store.done())} of {len(store.plan)} points are stored, "
-            "the same command resumes the sweep")
+    # an --overwrite sweep is built beside the old store (store.output): resumed there
+    again = (f"--out {store.where} with the other arguments unchanged resumes the sweep" if ".partial-" in store.where
+             else "the same command resumes the sweep")
+    return f"{store.where}: {text}; {len(store.done())} of {len(store.plan)} points are stored, {again}"
 
 
 def _py(v):

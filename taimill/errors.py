@@ -44,6 +44,14 @@ class StoreWriteError(StoreError):
     exit_code = 5
 
 
+class WorkerDied(RuntimeError):
+    """A worker process of a sweep died while it ran points (killed: out of memory,
+    SIGKILL). The message names the points that were running; the points finished
+    before are stored and the same command resumes the sweep."""
+
+    exit_code = 6  #: of the command line
+
+
 class SimulationUnstable(RuntimeError):
     """The integration produced a non-finite state or a ball left the jar."""
 

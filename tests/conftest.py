@@ -23,7 +23,7 @@ def taichi():
 # The slowest files first: `make test` hands whole files to its workers in collection
 # order, so the heavy ones start at once and small ones fill the end (in the old
 # alphabetical order test_tui and test_sweep came last and one worker idled ≈ 25 s).
-HEAVY_FIRST = ("test_faults.py", "test_tui.py", "test_runs.py", "test_sweep.py", "test_report.py",
+HEAVY_FIRST = ("test_faults.py", "test_fault_lines.py", "test_tui.py", "test_runs.py", "test_sweep.py", "test_report.py",
                "test_calibrate.py", "test_cli.py", "test_mechanisms.py", "test_liggghts.py")
 
 

@@ -50,7 +50,7 @@ def test_an_old_run_store_is_replaced_and_leftovers_of_killed_writers_cleaned(tm
     run = open_run(out)
     assert run.status == "complete" and run.config["duration"] == pytest.approx(0.1, rel=1e-3)  # whole steps
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.zarr", f"run.zarr.old-{gone + 1}"]  # no lock left
-    assert res.stderr.splitlines() == [
+    assert [ln for ln in res.stderr.splitlines() if not ln.startswith("taimill: warning: ")] == [  # 0.1 s: in the ramp
         f"taimill: removed {tmp_path / name}, left by an earlier writer of {out} that did not finish"
         for name in (f"run.partial-{gone}.zarr", f"run.zarr.old-{gone}")]
 
@@ -91,7 +91,7 @@ def test_a_sweep_resumes_only_against_the_preset_it_started_with(tmp_path):
     preset.write_text(text.replace("\ncount = 12\n", "\ncount = 24\n").replace("\nradius_mm = 6\n", "\nradius_mm = 4\n"))
     res = taimill(*sweep)
     assert res.returncode == 2
-    assert res.stderr.startswith(f"taimill: error: {out}: resume: preset {preset} changed since the sweep started: "
+    assert res.stderr.splitlines()[-1].startswith(f"taimill: error: {out}: resume: preset {preset} changed since the sweep started: "
                                  "balls.count 12 → 24, balls.radius 0.006 → 0.004, ")
     assert not any(zarr.open_group(out, mode="r")["table"]["done"][:])  # nothing computed with the new balls
 

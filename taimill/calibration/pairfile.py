@@ -25,6 +25,7 @@ import json
 from pathlib import Path
 
 from taimill.model.materials import contact_table, load_friction
+from taimill.store.output import whole_file
 
 
 def _value(v) -> str:
@@ -67,5 +68,6 @@ def write_pair_file(path, pair: str, *, law: str, override: dict, name: str | No
         f"v_s_mm_s = {_value(round(friction.v_s * 1e3, 12))}", f"v_d_mm_s = {_value(round(friction.v_d * 1e3, 12))}",
         "", f"[contact.{json.dumps(name)}]", *(f"{k} = {_value(v)}" for k, v in contact.items()),
     ]
-    path.write_text("\n".join(lines) + "\n")
+    with whole_file(path, "pair file") as part:  # whole or not at all: a full disk leaves nothing behind
+        part.write_text("\n".join(lines) + "\n")
     return path

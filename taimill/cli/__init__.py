@@ -5,7 +5,9 @@ the commands so `taimill --help` stays fast.
 Bad input (docs/outputs.md, errors): one line on stderr, `taimill: error: ` then the
 file (or "command line"), the key or option, the value and what is allowed; exit code
 2; checked before anything runs or is written. argparse's own errors are one line too
-(common.Parser)."""
+(common.Parser). Every other fault is one line as well, with its exit code (common.py):
+a write the system refused (5), a sweep worker that died (6), Ctrl-C (130), SIGTERM
+(143)."""
 
 from __future__ import annotations
 
@@ -14,7 +16,7 @@ import os
 import sys
 
 from taimill.cli import calibrate, catalog, compare, liggghts, record, report, run, sweep, tui
-from taimill.cli.common import EXIT_BAD_INPUT, Parser
+from taimill.cli.common import EXIT_BAD_INPUT, EXIT_WRITE_REFUSED, Parser
 
 SUBCOMMANDS = (run, calibrate, catalog, sweep, report, record, tui, liggghts, compare)
 
@@ -41,7 +43,7 @@ def parser() -> Parser:
 
 
 def main(argv=None) -> int:
-    from taimill.errors import ConfigError
+    from taimill.errors import ConfigError, WorkerDied
 
     try:
         a = parser().parse_args(argv)
@@ -52,6 +54,9 @@ def main(argv=None) -> int:
     except ConfigError as err:  # also StoreError (2) and StoreWriteError (5): taimill.errors
         print(f"taimill: error: {err}", file=sys.stderr)
         return getattr(err, "exit_code", EXIT_BAD_INPUT)
+    except WorkerDied as err:  # a sweep's worker process was killed: the finished points are stored
+        print(f"taimill: error: {err}", file=sys.stderr)
+        return err.exit_code
     except KeyboardInterrupt as err:  # Ctrl-C 130, SIGTERM 143 (taimill.runs.signals)
         print(f"taimill: {str(err) or 'interrupted'}", file=sys.stderr)
         return getattr(err, "exit_code", 130)
@@ -59,3 +64,7 @@ def main(argv=None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())  # so the interpreter's final flush stays quiet
         return 0
+    except OSError as err:  # a write refused where no output names it (a folder the OS would not create)
+        where = f"{err.filename}: " if err.filename else ""
+        print(f"taimill: error: {where}{err.strerror or err}", file=sys.stderr)
+        return EXIT_WRITE_REFUSED

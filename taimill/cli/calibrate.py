@@ -89,6 +89,7 @@ def cmd_fit(a) -> int:
     from taimill.errors import ConfigError
     from taimill.model.files import check_output, reads
     from taimill.model.contact_sets import pair_contact
+    from taimill.store.output import all_or_none
 
     _check(a.scatter, "--scatter", 0, 1, "(1 s.d. of e)")
     if a.out and not a.out.endswith(".toml"):
@@ -121,13 +122,14 @@ def cmd_fit(a) -> int:
     outside = [f"{r['h0_mm']:g}" for r in fit["rows"] if not r["within_scatter"]]
     lines.append("all heights within the scatter" if not outside else
                  f"outside the scatter (|Δe| > 2σ) at h0 = {', '.join(outside)} mm: the law's e(h0) does not follow the data there")
-    if a.out:
-        write_pair_file(a.out, a.pair, law=fit["law"], override=fit["override"], name=a.name, comments=[
-            f"{p} = {fit['value']:.6g} ± {fit['uncertainty']:.2g} {u} fitted to {fit['data']};",
-            f"rms e residual {fit['rms_e']:.4f}; use it in a preset as pair = \"{Path(a.out).name}\"."])
-        fit["pair_file"] = str(a.out)
-        lines.append(f"pair file: {a.out} (in a preset: pair = \"PATH/{Path(a.out).name}\", PATH relative to the preset file)")
-    _emit(a, fit, "\n".join(lines), fit_figure)
+    with all_or_none([a.out, a.figure]):  # a figure that fails takes the new pair file with it: run again as it was
+        if a.out:
+            write_pair_file(a.out, a.pair, law=fit["law"], override=fit["override"], name=a.name, comments=[
+                f"{p} = {fit['value']:.6g} ± {fit['uncertainty']:.2g} {u} fitted to {fit['data']};",
+                f"rms e residual {fit['rms_e']:.4f}; use it in a preset as pair = \"{Path(a.out).name}\"."])
+            fit["pair_file"] = str(a.out)
+            lines.append(f"pair file: {a.out} (in a preset: pair = \"PATH/{Path(a.out).name}\", PATH relative to the preset file)")
+        _emit(a, fit, "\n".join(lines), fit_figure)
     return 0
 
 

@@ -14,7 +14,12 @@ from taimill.errors import one_line
 from taimill.model.contact.registry import NAMES
 from taimill.schema import SUMMARY_ROWS
 
+# exit codes (docs/outputs.md): also 1 calibrate.EXIT_NO_MATCH, 4 record.EXIT_NO_DISPLAY,
+# 130 Ctrl-C and 143 SIGTERM (taimill.runs.signals)
 EXIT_BAD_INPUT, EXIT_UNSTABLE = 2, 3
+EXIT_WRITE_REFUSED = 5  #: the system refused a write (full disk, permissions): taimill.errors.StoreWriteError
+EXIT_WORKER_DIED = 6  #: a sweep's worker process died: taimill.errors.WorkerDied
+EXIT_INTERNAL = 70  #: the TUI stopped on an error in taimill itself (sysexits' EX_SOFTWARE)
 LAW_HELP = f"normal contact law ({', '.join(NAMES)})"
 PRESET_HELP = "a bundled preset by name (`taimill presets`), e.g. p4-cy-steel, or a preset file NAME.toml"
 LIVE_IGNORED = ("duration", "analysis_start")  #: overrides a live mill has no use for (it runs until quit)

@@ -84,8 +84,10 @@ def cmd_import(a) -> int:
         raise ConfigError("command line", "DIR", a.case, "an existing case directory (taimill export liggghts --out)")
     if not (Path(a.case) / MANIFEST).is_file():  # before the output is touched
         raise ConfigError("command line", "DIR", a.case, f"not a case exported by `taimill export liggghts` (no {MANIFEST})")
-    # locked, built beside an existing store and swapped in when complete, as `run` writes
-    with Output(a.out, overwrite=a.overwrite, what="run", kind="run store", ours=is_run_store, inputs=inputs) as out:
+    # locked, built beside an existing store and swapped in when complete, as `run` writes;
+    # one that failed (a full disk) is deleted: the case is still there to import again
+    with Output(a.out, overwrite=a.overwrite, what="run", kind="run store", ours=is_run_store, inputs=inputs,
+                keep=lambda _: False) as out:
         summary = import_case(a.case, out.build, dump=a.dump)
         out.commit()
     if a.json:

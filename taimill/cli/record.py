@@ -96,8 +96,10 @@ def cmd_record(a) -> int:
     geometry(store)  # StoreError if its config is not a run's
     from taimill.recording.sink import RerunSink  # rerun is slow to import: after the checks
 
+    # locked, built beside its place and renamed in when complete; one that failed (a
+    # full disk) is deleted: the store it comes from is still there to record again
     with Output(a.rrd, overwrite=a.overwrite, option="--rrd", what="recording", kind="rerun recording",
-                ours=is_recording, inputs=[source]) as out:  # locked, swapped in at the end
+                ours=is_recording, inputs=[source], whole=True, keep=lambda _: False) as out:
         replay(store, RerunSink(out.build, lab_frame=a.lab_frame, histogram_every=a.histogram_every))
         out.commit()
     print(f"{a.rrd}: {len(store.frames['time'])} frames, {len(store.events['t_start'])} events "

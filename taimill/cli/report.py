@@ -78,6 +78,7 @@ def cmd_analyse(a) -> int:
 def cmd_report(a) -> int:
     from taimill.errors import ConfigError
     from taimill.model.files import check_output
+    from taimill.store.output import all_or_none
 
     _check_options(a)
     out = a.out or str(Path(a.run)).rstrip("/").removesuffix(".zarr") + "-report"
@@ -94,16 +95,19 @@ def cmd_report(a) -> int:
             table = {}
         stems = figure_stems(table, bool(a.overlay))
         _refuse_existing(out, stems, a)
-        paths = report_sweep(a.run, out, a.format, overlay=a.overlay)
-        _mark(out, paths)
+        with all_or_none([out / f"{s}.{a.format}" for s in stems] + [out / REPORT_MARK], out):
+            paths = report_sweep(a.run, out, a.format, overlay=a.overlay)
+            _mark(out, paths)
     else:
         from taimill.figures.report import FIGURES, write_report
 
         if a.overlay:
             raise ConfigError("command line", "--overlay", a.overlay, "only for sweep stores (taimill sweep --out)")
         _refuse_existing(out, list(FIGURES), a)
-        paths = write_report(_open(a), out, a.format)
-        _mark(out, paths)
+        analysis = _open(a)
+        with all_or_none([out / f"{s}.{a.format}" for s in FIGURES] + [out / REPORT_MARK], out):  # a failure: no figure left
+            paths = write_report(analysis, out, a.format)
+            _mark(out, paths)
     for p in paths:
         print(p)
     return 0
@@ -140,10 +144,11 @@ def _marked(out: Path) -> set[str]:
 
 def _mark(out: Path, paths) -> None:
     """Add the figures just written to REPORT_MARK (written whole, then renamed in)."""
+    from taimill.store.output import whole_file
+
     names = sorted(_marked(out) | {Path(p).name for p in paths})
-    part = out / f"{REPORT_MARK}.partial-{os.getpid()}"
-    part.write_text(json.dumps({"written_by": "taimill report", "figures": names}, indent=1))
-    os.replace(part, out / REPORT_MARK)
+    with whole_file(out / REPORT_MARK, "report list") as part:
+        part.write_text(json.dumps({"written_by": "taimill report", "figures": names}, indent=1))
 
 
 def _is_sweep(path) -> bool:

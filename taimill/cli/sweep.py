@@ -110,7 +110,6 @@ def cmd_sweep(a) -> int:
     req, run_kw = request(a)
     with reads() as inputs:
         points = plan(req)  # every point validated before a store is touched or a kernel runs
-    print_warnings(*(p["preset"] for p in points))  # every distinct one once, before anything runs
     if a.out:  # its folder must exist and be writable (an existing store: the store's own rules)
         check_output(a.out, "--out", overwrite=None)
     if a.map:
@@ -120,6 +119,7 @@ def cmd_sweep(a) -> int:
     # finished sweep, and never if it is not a sweep store (store/sweep.py writing)
     with (writing(a.out, req.identity(), content(req, points), overwrite=a.overwrite, inputs=inputs) if a.out
           else contextlib.nullcontext()) as store:
+        print_warnings(*(p["preset"] for p in points))  # every distinct one once, after every refusal, before anything runs
         show_bar = not a.json or sys.stderr.isatty()
         if show_bar:
             from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import sys
+import traceback
 
 
 def register(subparsers):
@@ -35,8 +37,37 @@ def cmd_tui(a) -> int:
     print_warnings(preset)
     print("taimill: compiling the kernels …", file=sys.stderr)
     from taimill.runs.live import LiveMill
+    from taimill.runs.signals import sigterm_interrupts
     from taimill.tui.app import MillApp
 
-    mill = LiveMill(preset, overrides)  # main thread: ti.init, fields, first kernel call
-    MillApp(mill, out_dir=out_dir, window=a.window, paused=a.paused).run()
-    return 0
+    with sigterm_interrupts():  # while compiling: SIGTERM as Ctrl-C (one line, 143)
+        mill = LiveMill(preset, overrides)  # main thread: ti.init, fields, first kernel call
+    app = MillApp(mill, out_dir=out_dir, window=a.window, paused=a.paused)
+    app.run()
+    return ended(app)
+
+
+def ended(app) -> int:
+    """The exit code of a TUI session, after one line on stderr for its fault (the
+    app's `fault`, printed once Textual has restored the terminal): 5 a file it could
+    not write, 143 SIGTERM, 70 an error in taimill itself; never 0 after an error."""
+    from taimill.cli.common import EXIT_INTERNAL, EXIT_WRITE_REFUSED
+    from taimill.errors import ConfigError, one_line
+
+    fault = app.fault
+    if fault is None:
+        return app.return_code or 0
+    if isinstance(fault, KeyboardInterrupt):
+        print(f"taimill: {fault}", file=sys.stderr)
+        return getattr(fault, "exit_code", 130)
+    if isinstance(fault, ConfigError):  # StoreWriteError (5), a refused value (2)
+        print(f"taimill: error: {fault}", file=sys.stderr)
+        return fault.exit_code
+    if os.environ.get("TAIMILL_DEBUG"):
+        traceback.print_exception(fault, file=sys.stderr)
+    if isinstance(fault, OSError):
+        print(f"taimill: error: {fault.filename or 'tui'}: {fault.strerror or fault}", file=sys.stderr)
+        return EXIT_WRITE_REFUSED
+    print(f"taimill: error: tui: internal error ({type(fault).__name__}: {one_line(str(fault))}); "
+          "TAIMILL_DEBUG=1 shows where", file=sys.stderr)
+    return EXIT_INTERNAL

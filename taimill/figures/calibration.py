@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from taimill.store.output import whole_file
+
 
 def _pyplot():
     import matplotlib
@@ -22,8 +24,11 @@ def _pyplot():
 def _save(fig, path) -> Path:
     path = Path(path)
     fig.tight_layout()
-    fig.savefig(path, dpi=150)
-    _pyplot().close(fig)
+    try:
+        with whole_file(path, "figure") as part:
+            fig.savefig(part, dpi=150)
+    finally:
+        _pyplot().close(fig)
     return path
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from taimill.model import geometry
+from taimill.store.output import whole_file
 
 MM = 1e3  # m → mm
 GRID = 301  # SDF samples per side
@@ -106,7 +107,10 @@ def draw_jar(jar, path) -> Path:
     ax1.set_aspect("equal")
     fig.colorbar(cf, ax=ax1, label="φ (mm), positive inside", shrink=0.9)
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with whole_file(path, "figure") as part:
+            fig.savefig(part, dpi=110)
+    finally:
+        plt.close(fig)
     return path

@@ -16,6 +16,7 @@ import numpy as np
 
 from taimill.analysis.regime import MAP_REGIMES, map_regime, slip_ratio
 from taimill.analysis.theory import critical_ratio, pinning_friction
+from taimill.store.output import whole_file
 
 COLOURS = {"cascading": "#9ecae1", "cataracting": "#fdae6b", "pinned ring": "#74c476", "sliding bed": "#bcbddc",
            "rolling bed": "#fa9fb5", "unknown": "#ffffff"}
@@ -135,8 +136,11 @@ def regime_map(rows: list[dict], title: str = ""):
 def save_regime_map(rows: list[dict], path, title: str = "") -> Path:
     path = Path(path)
     fig = regime_map(rows, title)
-    fig.savefig(path, dpi=130)
     import matplotlib.pyplot as plt
 
-    plt.close(fig)
+    try:
+        with whole_file(path, "figure") as part:
+            fig.savefig(part, dpi=130)
+    finally:
+        plt.close(fig)
     return path

@@ -16,6 +16,7 @@ from matplotlib.colors import LogNorm  # noqa: E402
 
 from taimill.analysis.events import ENERGY_BINS, SPEED_BINS, log_pdf  # noqa: E402
 from taimill.analysis.run import RunAnalysis  # noqa: E402
+from taimill.store.output import whole_file  # noqa: E402
 
 FORMATS = ("png", "svg", "pdf")
 MM = 1e3
@@ -231,8 +232,11 @@ def _caption(a: RunAnalysis, what: str) -> str:
 def _save(fig, path: Path, caption: str, title: str):
     fmt = path.suffix.lstrip(".")
     meta = {"Title": title, "Subject" if fmt == "pdf" else "Description": caption}
-    fig.savefig(path, metadata=meta)
-    plt.close(fig)
+    try:
+        with whole_file(path, "figure") as part:
+            fig.savefig(part, metadata=meta)
+    finally:
+        plt.close(fig)
 
 
 FIGURES = {

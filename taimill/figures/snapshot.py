@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from taimill.store.output import whole_file
+
 MM = 1e3
 
 
@@ -51,5 +53,6 @@ def save_png(path: Path, *, title: str, outline: np.ndarray, height: float, posi
     text.axis("off")
     text.text(0.0, 1.0, "\n".join(readouts), family="monospace", va="top", fontsize=9)
     fig.suptitle(title)
-    fig.savefig(path, dpi=100)
+    with whole_file(path, "PNG snapshot") as part:
+        fig.savefig(part, dpi=100)
     return path

@@ -39,6 +39,7 @@ from taimill.model.files import csv_cells, read_text
 from taimill.analysis.sweep import (REGIMES, SweepAxes, axis_label, axis_scale, curves, first_value, mean_band,
                                     regime_fractions, sweep_axes, value_text, x_values)
 from taimill.figures.sweep_map import MAPS, map_figure, mark_critical
+from taimill.store.output import whole_file
 
 # file stem, figure title, [(column, panel title)], y label, scale to the plotted unit
 FIGURES = (
@@ -267,8 +268,11 @@ def _bare(name: str) -> str:
 def _save(fig, path: Path) -> Path:
     import matplotlib.pyplot as plt
 
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    try:
+        with whole_file(path, "figure") as part:
+            fig.savefig(part, dpi=120)
+    finally:
+        plt.close(fig)
     return path
 
 

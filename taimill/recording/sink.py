@@ -17,12 +17,15 @@ live speed changes made in the TUI are not in the config and so not in that view
 
 from __future__ import annotations
 
+import functools
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
 import rerun as rr
 
+from taimill.errors import StoreWriteError
 from taimill.recording import scene
 from taimill.recording import stats
 from taimill.model.drive import Drive
@@ -34,6 +37,30 @@ STAT_LAG = 0.1  # s a window waits for contacts still open at its end (2 launche
 STAT_WINDOW = 1.0  # s, sliding window of the scalar series
 EVENT_KEYS = ("t_start", "kind", "x", "y", "z", "un", "ut", "se_n", "se_t")
 LEDGER_KEYS = tuple(ENERGY_COLUMNS)
+
+
+FULL_BYTES = 1 << 16  #: free space below which a failed write is put down to a full disk
+
+
+def _refusals(method):
+    """A write rerun's file writer could not do (it says only "File-writer thread shut
+    down prematurely", and logs the cause) as StoreWriteError naming the recording;
+    after it the sink takes nothing more."""
+    @functools.wraps(method)
+    def call(self, *args, **kwargs):
+        if self.failed:
+            return None
+        try:
+            return method(self, *args, **kwargs)
+        except (RuntimeError, OSError) as err:
+            self.failed, self.rec = True, None
+            try:
+                full = shutil.disk_usage(self.path.absolute().parent).free < FULL_BYTES
+            except OSError:
+                full = False
+            why = "No space left on device" if full else getattr(err, "strerror", None) or str(err)
+            raise StoreWriteError(self.path, "recording", f"write failed ({why})") from None
+    return call
 
 
 def _cat(blocks: list[dict], keys) -> dict[str, np.ndarray]:
@@ -57,8 +84,10 @@ class RerunSink:
         self.path = Path(path)
         self.lab_frame, self.period, self.window = lab_frame, histogram_every, window
         self.rec: rr.RecordingStream | None = None
+        self.failed = False  #: a write failed: the sink takes nothing more
 
     # ------------------------------------------------------------ the Sink protocol
+    @_refusals
     def start(self, config: dict, n_balls: int, radii: np.ndarray) -> None:
         """Open the file, log the static scenery and set the colour scales. `config`:
         the resolved preset (`Preset.as_dict()`, or its JSON copy in a store); the
@@ -113,6 +142,7 @@ class RerunSink:
                         or waiting * self.n >= BATCH_POINTS):
             self.flush()
 
+    @_refusals
     def finish(self, summary: dict, status: str) -> None:
         """Send what is buffered, every remaining statistic, the summary; close the file."""
         if self.rec is None:
@@ -124,6 +154,7 @@ class RerunSink:
         self.rec = None
 
     # ------------------------------------------------------------ sending
+    @_refusals
     def flush(self, final: bool = False) -> None:
         """Send buffered frames and events; statistics up to STAT_LAG before the newest
         ledger row (all of them if `final`)."""

@@ -6,9 +6,13 @@ Backends:
 - local: `ProcessPoolExecutor` with the **spawn** start method (fork after `ti.init`
   hangs); every worker calls `init_taichi(threads=1)` once and keeps its
   engine between chunks (simulation._engines); progress comes back over a queue after
-  every kernel launch. Workers die with the parent, even a parent killed with SIGKILL
+  every kernel launch, with the worker's pid (so the parent knows which chunk runs
+  where). Workers die with the parent, even a parent killed with SIGKILL
   (taimill.runs.signals.die_with_parent), and ignore Ctrl-C: the parent stops them
-  when it is interrupted or its consumer stops (no chunk runs on unseen).
+  when it is interrupted or its consumer stops (no chunk runs on unseen). A worker
+  that dies (killed: out of memory, SIGKILL) breaks the pool: the chunks that finished
+  are still handed over, then `PoolBroken` names the dead worker and the chunks that
+  were running.
 - dask: `distributed.Client(address).submit` per chunk; a dask worker process starts
   Taichi lazily on its first chunk and reuses it. Workers must run one thread each
   (`dask worker ADDRESS --nthreads 1`; `processes=False` or several threads break
@@ -23,7 +27,8 @@ import queue as queue_mod
 import signal
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from dataclasses import dataclass
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -50,6 +55,16 @@ class PointResult:
     n_balls: int
     radii: np.ndarray
     tables: dict | None  #: {"frames": …, "events": …, "energy": …} (MemorySink tables)
+
+
+@dataclass
+class PoolBroken(Exception):
+    """A worker process died and took the pool with it. `dead`: (pid, how it ended,
+    e.g. "killed by SIGKILL") of each worker that died by itself; `lost`: the indices
+    of the points of each chunk that was running, by the pid of its worker (0: unknown)."""
+
+    dead: list = field(default_factory=list)
+    lost: dict = field(default_factory=dict)
 
 
 def chunk_seconds(jobs: list[Job]) -> float:
@@ -97,6 +112,8 @@ def run_chunk(chunk_id: int, jobs: list[Job], keep_streams: bool) -> list[PointR
     from taimill.runs.simulation import start_point
 
     _check_dask_worker()
+    if _progress is not None:
+        _progress.put((chunk_id, 0.0, os.getpid()))  # the parent learns where the chunk runs
     init_taichi(threads=1)
     specs = [from_preset(j.preset) for j in jobs]
     mems = [MemorySink() if keep_streams else NullSink() for _ in jobs]
@@ -111,7 +128,7 @@ def run_chunk(chunk_id: int, jobs: list[Job], keep_streams: bool) -> list[PointR
                 status[b] = f"unstable: {fault}"
         if _progress is not None:
             done = sum(min(runner.time(b), s.steps * s.dt) for b, s in enumerate(specs))
-            _progress.put((chunk_id, done))
+            _progress.put((chunk_id, done, os.getpid()))
     wall = time.perf_counter() - t0
     work = np.array([int(runner.engine.F.state.step[b]) * s.n for b, s in enumerate(specs)], dtype=float)
     share = work / work.sum() if work.sum() > 0 else np.full(len(jobs), 1.0 / len(jobs))
@@ -136,16 +153,27 @@ def run_local(chunks: list[list[Job]], workers: int, keep_streams: bool, on_prog
     progress_queue = ctx.Queue()
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_local_worker,
                                initargs=(progress_queue, os.getpid()))
+    running: dict[int, int | None] = {}  # chunk id -> pid of the worker running it (None: finished)
     try:
         futures = {pool.submit(run_chunk, cid, chunk, keep_streams): cid for cid, chunk in enumerate(chunks)}
         pending = set(futures)
         while pending:
             done, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
-            _drain(progress_queue, on_progress)
+            workers_seen = dict(getattr(pool, "_processes", None) or {})
+            _drain(progress_queue, on_progress, running)
+            broken = [f for f in done if isinstance(f.exception(), BrokenProcessPool)]
+            if broken:  # every future left fails at once: take those that finished first
+                done |= wait(pending, timeout=10)[0]
             for fut in done:
+                if isinstance(fut.exception(), BrokenProcessPool):
+                    continue
                 results = fut.result()
+                running[futures[fut]] = None
                 on_progress(futures[fut], chunk_seconds(chunks[futures[fut]]))
                 yield results
+            if broken:
+                _drain(progress_queue, on_progress, running)
+                raise _broken(workers_seen | dict(getattr(pool, "_processes", None) or {}), running, chunks)
     except BaseException:  # interrupted, or the consumer failed or stopped: stop the chunks under way
         _stop_workers(pool)
         raise
@@ -163,18 +191,47 @@ def _stop_workers(pool: ProcessPoolExecutor) -> None:
             pass
 
 
-def _drain(q, on_progress):
+def _broken(processes: dict, running: dict[int, int], chunks) -> PoolBroken:
+    """What a broken pool lost: its workers that died by themselves (the pool then
+    ends the others with SIGTERM) and the chunks running at the time."""
+    dead = []
+    for pid, process in processes.items():
+        process.join(timeout=5)
+        code = process.exitcode
+        if code not in (None, 0, -signal.SIGTERM):
+            how = f"killed by {_signal_name(-code)}" if code < 0 else f"exit code {code}"
+            how += " (out of memory?)" if code == -signal.SIGKILL else ""  # what the kernel's OOM killer sends
+            dead.append((pid, how))
+    lost: dict[int, list[int]] = {}
+    for cid, pid in running.items():
+        if pid is not None:
+            lost.setdefault(pid, []).extend(j.index for j in chunks[cid])
+    return PoolBroken(dead, lost)
+
+
+def _signal_name(number: int) -> str:
+    try:
+        return signal.Signals(number).name
+    except ValueError:
+        return f"signal {number}"
+
+
+def _drain(q, on_progress, running=None):
     while True:
         try:
-            cid, seconds = q.get_nowait()
+            cid, seconds, pid = q.get_nowait()
         except queue_mod.Empty:
             return
+        except (OSError, ValueError, EOFError):  # a worker killed mid-message: what came before counts
+            return
+        if running is not None and running.get(cid, 0) is not None:  # a late report of a finished chunk
+            running[cid] = pid
         on_progress(cid, seconds)
 
 
 def run_dask(chunks: list[list[Job]], address: str, keep_streams: bool, on_progress):
     """Yield each chunk's results as it finishes on the dask cluster at `address`."""
-    from distributed import Client, as_completed
+    from distributed import Client, KilledWorker, as_completed
 
     from taimill.errors import ConfigError
 
@@ -197,6 +254,9 @@ def run_dask(chunks: list[list[Job]], address: str, keep_streams: bool, on_progr
                    for cid, chunk in enumerate(chunks)}
         for fut in as_completed(futures):
             cid = futures[fut]
-            results = fut.result()
+            try:
+                results = fut.result()
+            except KilledWorker:  # dask retried the chunk on other workers and they died too
+                raise PoolBroken([(0, "died (dask KilledWorker)")], {0: [j.index for j in chunks[cid]]}) from None
             on_progress(cid, chunk_seconds(chunks[cid]))
             yield results

@@ -19,8 +19,8 @@ import math
 import os
 from dataclasses import dataclass
 
-from taimill.errors import ConfigError
-from taimill.runs.executors import Job, chunk_seconds, run_dask, run_local
+from taimill.errors import ConfigError, WorkerDied
+from taimill.runs.executors import Job, PoolBroken, chunk_seconds, run_dask, run_local
 from taimill.runs.signals import sigterm_interrupts
 from taimill.analysis.sweep import CURVE_COLUMNS, parabolic_peak, refine_candidates
 from taimill.store.run import plain
@@ -278,6 +278,8 @@ def execute(points, store: SweepStore | None, *, batch=None, workers=None, sched
                     if store is not None:
                         store.write_point(r)
                     rows[r.index] = r.summary
+        except PoolBroken as broken:
+            raise WorkerDied(died(broken, store, dict(zip(index, points)))) from None
         finally:
             stream.close()  # a failed write stops the workers now, not at interpreter exit
     if store is None:
@@ -285,6 +287,35 @@ def execute(points, store: SweepStore | None, *, batch=None, workers=None, sched
     table = store.table()
     where = {int(v): k for k, v in enumerate(table["point"])}
     return {i: {name: _py(col[where[i]]) for name, col in table.items()} for i in index}
+
+
+DESCRIBED = ("jar", "balls.count", "pair", "pair_ball_wall", "friction.mu_s", "friction.mu_r", "plate_rpm", "ratio", "seed")
+
+
+def died(broken: PoolBroken, store: SweepStore | None, points: dict[int, dict]) -> str:
+    """The one line for a sweep whose worker died: which worker, how, the points it was
+    running and those stopped with it, and what is kept."""
+    def one(i):
+        ov = points[i]["overrides"]
+        return f"point {i} ({', '.join(f'{k} {ov[k]}' for k in DESCRIBED if k in ov)})"
+
+    def named(indices):
+        return ", ".join(one(i) for i in sorted(indices) if i in points)
+
+    dead = {pid for pid, _ in broken.dead}
+    who = "; ".join(f"worker process {pid} {how}" if pid else f"a worker {how}" for pid, how in broken.dead) \
+        or "a worker process died"
+    ran = [i for pid, ids in broken.lost.items() if pid in dead or not dead for i in ids]
+    also = [i for pid, ids in broken.lost.items() if dead and pid not in dead for i in ids]
+    text = who + (f" while it ran {named(ran)}" if ran else "")
+    if also:
+        text += f"; stopped with it: {named(also)}"
+    if store is None:
+        return f"sweep: {text}; nothing is stored (no --out)"
+    # an --overwrite sweep is built beside the old store (store.output): resumed there
+    again = (f"--out {store.where} with the other arguments unchanged resumes the sweep" if ".partial-" in store.where
+             else "the same command resumes the sweep")
+    return f"{store.where}: {text}; {len(store.done())} of {len(store.plan)} points are stored, {again}"
 
 
 def _py(v):

@@ -16,6 +16,13 @@
   stays as it was and the new partial one is kept beside it under that name; the
   message says so. The next writer of the same output that finishes deletes such
   leftovers of writers no longer running (`leftovers`), naming each on stderr.
+- **A single file appears whole or not at all** (`whole_file`: figures, pair files):
+  it is written under a temporary name beside its place (NAME.partial-PID.SUFFIX),
+  flushed to disk and renamed over it; a failure deletes the temporary file, so a
+  full disk leaves neither a truncated file nor one that blocks the retry.
+- **A refused write is one line.** An OSError inside `Output` or `whole_file` (a full
+  disk, permissions, an I/O error) becomes `StoreWriteError` (exit code 5) naming the
+  output and saying what is left of it.
 - **Only our own outputs are replaced.** An existing path is replaced (--overwrite) or
   resumed only if it is an output of the kind being written that taimill wrote
   (`ours`: a run store, a sweep store, a recording) and no input of the command
@@ -203,6 +210,64 @@ def leftovers(path) -> list[Path]:
     return [q for q in beside if (m := name.fullmatch(q.name)) and not _running(int(m.group(1) or m.group(2)))]
 
 
+def _fsync(path) -> None:
+    """Flush a finished file to the disk (a power cut after the rename must not leave it empty)."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def refused(err: OSError) -> str:
+    """What an OSError says, without its errno number and path: "No space left on device"."""
+    return err.strerror or str(err)
+
+
+@contextlib.contextmanager
+def whole_file(path, what: str = "file"):
+    """The name to write one file under so that `path` appears only complete (module
+    doc): the block writes the yielded NAME.partial-PID.SUFFIX (the suffix kept for
+    tools that go by it, matplotlib among them); at its end the file is flushed and
+    renamed over `path`. On any error the temporary file is deleted and `path` is as
+    it was; an OSError becomes StoreWriteError naming `path` and `what`."""
+    path = Path(path)
+    part = partial_path(path)
+    existed = os.path.lexists(path)
+    try:
+        yield part
+        _fsync(part)
+        os.replace(part, path)
+    except BaseException as err:
+        with contextlib.suppress(OSError):
+            remove(part)
+        if isinstance(err, OSError):
+            left = f"{path} is unchanged" if existed else "nothing was written"
+            raise StoreWriteError(path, what, f"write failed ({refused(err)}); {left}") from None
+        raise
+
+
+@contextlib.contextmanager
+def all_or_none(paths, folder=None):
+    """Files one command writes together (a report's figures, a pair file and its
+    figure): if the block fails, those of `paths` that were not there before it are
+    deleted, and `folder` too if the block created it and left it empty, so the same
+    command can simply be run again. Files that were there before stay as they are."""
+    paths = [Path(p) for p in paths if p is not None]
+    new = [p for p in paths if not os.path.lexists(p)]
+    new_folder = folder is not None and not os.path.lexists(folder)
+    try:
+        yield
+    except BaseException:
+        for p in new:
+            with contextlib.suppress(OSError):
+                remove(p)
+        if new_folder:
+            with contextlib.suppress(OSError):
+                os.rmdir(folder)
+        raise
+
+
 class Output:
     """One output path written by this process (module doc):
 
@@ -212,23 +277,27 @@ class Output:
 
     `out.build` is the path itself for a new output (or one reused: `reuse=True`, a
     sweep resumed in place), RUN.partial-PID.zarr when it replaces an existing one.
-    Leaving the block without commit() (an error, an interrupt) keeps an existing
-    output unchanged; the partial one stays beside it if `keep(build)` says it holds
-    anything worth keeping (default: it exists), else it is deleted. An interrupt
+    `whole=True` builds a new output beside its path too, so that the path appears only
+    complete (a recording). Leaving the block without commit() (an error, an interrupt)
+    keeps an existing output unchanged; what was built (the partial one beside it, or
+    a new output) stays if `keep(build)` says it holds anything worth keeping (default:
+    it exists), else it is deleted: a failure then leaves nothing that blocks the
+    retry. An OSError inside the block becomes StoreWriteError naming the output. An interrupt
     leaves as an `Interrupted` whose message says where things are. An existing path
     is replaced or reused only if `ours(path)` says it is an output of this kind and it
     is none of `inputs` (the files the command reads): check_replaceable, whose refusal
     calls it a `kind` (default: `what`)."""
 
     def __init__(self, path, *, ours, overwrite: bool = False, reuse: bool = False, option: str = "--out",
-                 what: str = "output", kind: str | None = None, keep=None, inputs=()):
+                 what: str = "output", kind: str | None = None, keep=None, inputs=(), whole: bool = False):
         self.path = Path(path)
         self.overwrite, self.reuse, self.option, self.what = overwrite, reuse, option, what
         self.ours, self.kind, self.inputs = ours, kind or what, tuple(inputs)
         self.keep = keep or os.path.lexists
         self.lock = OutputLock(path)
+        self.whole = whole
         self.build = self.path
-        self.replacing = self.committed = False
+        self.replacing = self.existed = self.committed = False
 
     def __enter__(self) -> "Output":
         if self.overwrite or self.reuse:  # before the lock: a refusal leaves no trace beside a user's file
@@ -238,8 +307,8 @@ class Output:
             exists = os.path.lexists(self.path)
             if exists and not (self.overwrite or self.reuse):
                 raise ConfigError("command line", self.option, str(self.path), "exists; pass --overwrite to replace it")
-            self.replacing = exists and self.overwrite
-            if self.replacing:
+            self.existed, self.replacing = exists, exists and self.overwrite
+            if self.replacing or (self.whole and not exists):
                 self.build = partial_path(self.path)
                 remove(self.build)
         except BaseException:
@@ -250,7 +319,7 @@ class Output:
     def commit(self) -> None:
         """The work is complete: the new output takes the path, and leftovers of earlier
         writers of it that did not finish are deleted (module doc)."""
-        if self.replacing:
+        if self.build != self.path:
             try:
                 swap_in(self.build, self.path)
             except OSError as err:
@@ -268,22 +337,30 @@ class Output:
 
     def kept(self) -> str:
         """Where the output of unfinished work is, for the one-line message."""
-        if not self.replacing:
+        if self.build == self.path:
             return f"the {self.what} so far is in {self.path}" if os.path.lexists(self.path) else f"nothing was written to {self.path}"
+        old = f"{self.path} is unchanged" if self.existed else f"nothing was written to {self.path}"
         if os.path.lexists(self.build):
-            return f"{self.path} is unchanged; the partial {self.what} is in {self.build}"
-        return f"{self.path} is unchanged"
+            return f"{old}; the partial {self.what} is in {self.build}"
+        return old
 
     def __exit__(self, exc_type, err, tb):
         try:
             if err is None or self.committed:
                 return
-            if self.replacing and os.path.lexists(self.build) and not self.keep(self.build):
-                remove(self.build)
+            mine = self.build != self.path or not self.existed  # never an output resumed in place
+            removed = mine and os.path.lexists(self.build) and not self.keep(self.build)
+            if removed:
+                with contextlib.suppress(OSError):
+                    remove(self.build)
             if isinstance(err, KeyboardInterrupt):
                 raise Interrupted(f"{str(err) or 'interrupted'}; {self.kept()}", getattr(err, "exit_code", 130)) from err
-            if isinstance(err, StoreWriteError) and self.replacing:
-                raise StoreWriteError(err.source, err.key, f"{err.allowed}; {self.kept()}") from err
+            if isinstance(err, OSError):
+                raise StoreWriteError(self.path, self.kind, f"write failed ({refused(err)}); {self.kept()}") from err
+            if isinstance(err, StoreWriteError) and (self.build != self.path or removed):
+                source = self.path if err.source == str(self.build) else err.source  # the name the user gave
+                why = err.allowed.split("; ")[0] if removed else err.allowed  # not "what was committed is readable"
+                raise StoreWriteError(source, err.key, f"{why}; {self.kept()}") from err
         finally:
             self.lock.release()
 

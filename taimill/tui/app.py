@@ -4,13 +4,21 @@ The simulation runs in one thread worker (`simulate`, body in simloop.py) and re
 only through messages (frames, readouts, faults). Changes go the other way through the
 LiveMill's locked setters, called from the UI thread; the LiveMill must have been built
 (and its kernels compiled) in the main thread before the app starts.
+
+Faults: a file that cannot be written (a recording on a full disk, a PNG) is said in
+the message bar, its recording ended, and the app goes on; an error nothing handles
+ends the app (recordings closed first). SIGTERM closes the recordings and quits. Each
+leaves its cause in `fault`, from which `taimill tui` prints one line and takes its
+exit code once the terminal is restored: the app never ends with 0 after an error.
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import importlib
 import math
+import signal
 import time
 from pathlib import Path
 
@@ -19,9 +27,9 @@ from textual.app import App, ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.widgets import Footer, Header, Static
-from textual.worker import get_current_worker
+from textual.worker import WorkerFailed, get_current_worker
 
-from taimill.errors import ConfigError
+from taimill.errors import ConfigError, Interrupted
 from taimill.model.preset import KINDS
 from taimill.figures.snapshot import save_png
 from taimill.tui.controls import Controls
@@ -29,7 +37,7 @@ from taimill.tui.help import HelpScreen
 from taimill.tui.history import SERIES, History
 from taimill.tui.jarview import JarView
 from taimill.tui.messages import (FrameReady, FrictionRequested, Notice, ReadoutsReady, RebuildRequested, SimFault,
-                                  SpeedsRequested)
+                                  SpeedsRequested, WriteFailed)
 from taimill.tui.readouts import Readouts, text_lines, title
 from taimill.tui.recorders import Recorders
 from taimill.tui.simloop import SimulationLoop
@@ -70,7 +78,8 @@ class MillApp(App):
         self.out_dir = Path(out_dir)
         self.window_seconds = window
         self.loop = SimulationLoop(mill, window, paused)
-        self.recorders = Recorders(self.out_dir)
+        self.recorders = Recorders(self.out_dir, on_fault=lambda kind, err: self.post_message(WriteFailed(err, kind)))
+        self.fault: BaseException | None = None  #: the first error of the session (module doc)
         self.last_frame: FrameReady | None = None
         self.last_values: dict = {}
         self.fps = math.nan  # frames drawn per wall s, measured
@@ -100,6 +109,8 @@ class MillApp(App):
         yield Footer()
 
     def on_mount(self):
+        with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):  # not the main thread, not Unix
+            asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, self._terminated)
         self.sub_title = title(self.mill.preset)  # the preset file and the mill's name
         self._set_jar()
         self._show_now()
@@ -164,6 +175,46 @@ class MillApp(App):
     def on_notice(self, msg: Notice):
         self._message(msg.text, msg.error)
         self._status()
+
+    def on_write_failed(self, msg: WriteFailed):
+        """A recording or PNG could not be written: say so, end the recording, go on."""
+        self.fault = self.fault or msg.error
+        ended = ""
+        if msg.kind is not None:
+            try:
+                path = self.recorders.stop(msg.kind, self.mill, f"failed: {msg.error}")
+            except (OSError, ConfigError):
+                path = None
+            ended = f"; {msg.kind} recording ended" + (f": {path}" if path else "")
+        self._message(f"write failed: {msg.error}{ended}", error=True)
+        self._status()
+
+    # ------------------------------------------------------------------ ends
+    def _handle_exception(self, error: Exception) -> None:
+        """Textual's hook for an exception nothing handled (in a handler or a worker):
+        keep it as the fault, close the recordings and leave; `taimill tui` prints it
+        as one line (TAIMILL_DEBUG=1: its traceback first)."""
+        if isinstance(error, WorkerFailed):
+            error = error.error
+        self.fault = self.fault or error
+        self._close_recordings("failed: error")
+        self.exit(return_code=1)
+
+    def _terminated(self):
+        """SIGTERM: close the recordings and quit (Textual restores the terminal); a
+        second SIGTERM kills at once."""
+        with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
+            asyncio.get_running_loop().remove_signal_handler(signal.SIGTERM)
+        closed = self._close_recordings("stopped: terminated")
+        self.fault = self.fault or Interrupted("terminated (SIGTERM)" + (f"; recordings closed: {', '.join(map(str, closed))}"
+                                                                       if closed else ""), 128 + signal.SIGTERM)
+        self.exit(return_code=128 + signal.SIGTERM)
+
+    def _close_recordings(self, status: str) -> list[Path]:
+        try:
+            return self.recorders.stop_all(self.mill, status)
+        except Exception:  # noqa: BLE001 (leaving anyway: the first fault is what is reported)
+            return []
 
     def _message(self, text: str, error: bool = False):
         bar = self.message_bar
@@ -264,14 +315,15 @@ class MillApp(App):
         first time, so not in the UI thread."""
         try:
             self.post_message(Notice(self.recorders.toggle(kind, self.mill)))
-        except (ImportError, OSError, ValueError) as err:
+        except ImportError as err:
             self.post_message(Notice(f"cannot record {kind}: {err}", error=True))
+        except (OSError, ValueError) as err:  # StoreWriteError: a ConfigError, a ValueError
+            self.post_message(WriteFailed(err))
 
     def action_snapshot(self):
         """Draw the PNG in a worker (≈ 1-8 s: matplotlib); say so at once, then the path."""
         f = self.last_frame or self.loop.frame()
         p = self.mill.preset
-        self.out_dir.mkdir(parents=True, exist_ok=True)
         path = self.out_dir / f"taimill-t{f.sim_time:.3f}s-{time.strftime('%Y%m%d-%H%M%S')}.png"
         heading = (f"{title(p)}: {p.jar.name} jar, {self.mill.n_balls} balls, {p.pair} μ_s {p.friction.mu_s:g} "
                  f"μ_d {p.friction.mu_d:g}, Ω = {self.mill.plate_rpm:g} rpm, K = {self.mill.ratio:.4g}")
@@ -284,7 +336,12 @@ class MillApp(App):
 
     @work(thread=True, group="files")
     def _save_png(self, path: Path, figure: dict):
-        save_png(path, **figure)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            save_png(path, **figure)
+        except (OSError, ConfigError) as err:  # whole_file: StoreWriteError
+            self.post_message(WriteFailed(err))
+            return
         self.post_message(Notice(f"figures saved to {path}"))
 
     def action_help(self):
@@ -311,5 +368,7 @@ class MillApp(App):
     async def on_unmount(self):
         """However the app ends, the worker leaves the mill between two launches first
         (a kernel must not run on while the interpreter shuts down)."""
+        with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
+            asyncio.get_running_loop().remove_signal_handler(signal.SIGTERM)
         self.workers.cancel_group(self, "simulation")
         await asyncio.to_thread(self.loop.stopped.wait, 5.0)

@@ -52,6 +52,15 @@ class Notice(Message):
     error: bool = False
 
 
+@dataclass
+class WriteFailed(Message):
+    """A file the app writes (a recording, a PNG) could not be written: the app says so,
+    ends the recording of `kind` if one is open, goes on, and exits non-zero at the end."""
+
+    error: BaseException  #: the refusal (StoreWriteError, OSError)
+    kind: str | None = None  #: "rrd" or "zarr" for a recording
+
+
 # ---- controls -> app
 @dataclass
 class SpeedsRequested(Message):

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from taimill.errors import ConfigError
 from taimill.store.sinks import FanOut, Relay
 from taimill.analysis.summary import SummarySink
 from taimill.tui.window import Rebased
@@ -104,15 +105,50 @@ class RecordingSummary(Relay):
         return self.summary.result(t_end, wall)
 
 
+class Guarded(Relay):
+    """The file's sink until a write fails (a full disk): the failure goes to
+    `on_fault(error)` once, in the simulation's thread, instead of stopping the mill,
+    and nothing more reaches the file; `finish` then only tries to record the status."""
+
+    def __init__(self, sink, on_fault):
+        super().__init__(sink)
+        self.on_fault, self.error = on_fault, None
+
+    def _pass(self, name: str, block) -> None:
+        if self.error is not None:
+            return
+        try:
+            getattr(self.sink, name)(block)
+        except (OSError, ConfigError) as err:  # StoreWriteError is a ConfigError
+            self.error = err
+            self.on_fault(err)
+
+    def frames(self, block):
+        self._pass("frames", block)
+
+    def events(self, block):
+        self._pass("events", block)
+
+    def energy(self, block):
+        self._pass("energy", block)
+
+    def finish(self, summary, status):
+        try:
+            self.sink.finish(summary, status if self.error is None else f"failed: {self.error}")
+        except (OSError, ConfigError):
+            pass  # said once already
+
+
 class Recording:
     """One recording attached to a LiveMill: the file's sink and its summary. It starts
-    at the simulated time the mill had when the sink was attached (`t_start`)."""
+    at the simulated time the mill had when the sink was attached (`t_start`); a write
+    that fails goes to `on_fault(kind, error)` (Guarded)."""
 
-    def __init__(self, kind: str, path: Path, mill):
+    def __init__(self, kind: str, path: Path, mill, on_fault=None):
         self.kind, self.path = kind, path
         self.wall_start = time.perf_counter()
         self.summary = RecordingSummary()
-        self.file = file_sink(kind, path)
+        self.file = Guarded(file_sink(kind, path), lambda err: on_fault and on_fault(kind, err))
         self.sink = FanOut(self.summary, self.file)
         mill.add_sink(self.sink)
         self.t_start = self.summary.t_start
@@ -132,8 +168,9 @@ class Recording:
 class Recorders:
     """At most one recording of each kind; `toggle` starts or stops it."""
 
-    def __init__(self, out_dir: Path):
+    def __init__(self, out_dir: Path, on_fault=None):
         self.out_dir = Path(out_dir)
+        self.on_fault = on_fault  #: (kind, error) of a recording whose write failed
         self.active: dict[str, Recording] = {}
         self._lock = threading.Lock()  # toggles run in worker threads
 
@@ -149,9 +186,17 @@ class Recorders:
             del self.active[kind]  # after the file is closed: `active` says what is open
             return f"{kind} recording stopped: {rec.path} (t = {rec.t_start:.3f} … {mill.time:.3f} s)"
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        rec = Recording(kind, new_path(self.out_dir, kind), mill)
+        rec = Recording(kind, new_path(self.out_dir, kind), mill, self.on_fault)
         self.active[kind] = rec
         return f"recording {kind} to {rec.path} from t = {rec.t_start:.3f} s"
+
+    def stop(self, kind: str, mill, status: str) -> Path | None:
+        """End the recording of `kind` if one is open; its path."""
+        with self._lock:
+            rec = self.active.pop(kind, None)
+            if rec is not None:
+                rec.stop(mill, status)
+        return rec.path if rec is not None else None
 
     def stop_all(self, mill, status: str) -> list[Path]:
         paths = []

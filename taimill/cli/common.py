@@ -21,7 +21,9 @@ EXIT_WRITE_REFUSED = 5  #: the system refused a write (full disk, permissions): 
 EXIT_WORKER_DIED = 6  #: a sweep's worker process died: taimill.errors.WorkerDied
 EXIT_INTERNAL = 70  #: the TUI stopped on an error in taimill itself (sysexits' EX_SOFTWARE)
 LAW_HELP = f"normal contact law ({', '.join(NAMES)})"
-PRESET_HELP = "a bundled preset by name (`taimill presets`), e.g. p4-cy-steel, or a preset file NAME.toml"
+DEFAULT_PRESET = "p4-cy-steel"  #: the base a command's options change when it names no preset
+PRESET_HELP = ("a bundled preset by name (`taimill presets`), e.g. p4-cy-steel, or a preset file NAME.toml; "
+               f"default {DEFAULT_PRESET} (the thesis' P 4 set-up), which the options below change")
 LIVE_IGNORED = ("duration", "analysis_start")  #: overrides a live mill has no use for (it runs until quit)
 
 
@@ -128,6 +130,11 @@ def add_overrides(p, live: bool = False):
     g.add_argument("--law", help=LAW_HELP)
 
 
+def stations_text(n) -> str:
+    """"1 station", "4 stations"."""
+    return f"{n} station" if n == 1 else f"{n} stations"
+
+
 def print_warnings(*presets) -> None:
     """The presets' warnings (estimates, assumptions, implausible values), one line each
     on stderr, each distinct warning once (a sweep's points mostly share theirs)."""
@@ -146,7 +153,7 @@ def _fmt(value, scale):
 
 
 def summary_table(s: dict) -> str:
-    rows = [(label.format(stations=s.get("stations")), _fmt(s.get(key), scale), unit)
+    rows = [(label.format(stations=stations_text(s.get("stations"))), _fmt(s.get(key), scale), unit)
             for key, label, unit, scale in SUMMARY_ROWS if key in s]
     w = max(len(r[0]) for r in rows)
     text = "\n".join(f"{label:<{w}}  {value:>12} {unit}" for label, value, unit in rows)

@@ -9,14 +9,14 @@ import json
 import sys
 from pathlib import Path
 
-from taimill.cli.common import PRESET_HELP, add_overrides, overrides, plain, print_warnings, summary_table
+from taimill.cli.common import DEFAULT_PRESET, PRESET_HELP, add_overrides, overrides, plain, print_warnings, summary_table
 
 
 def register(sub) -> None:
     e = sub.add_parser("export", help="write a preset as a case for another DEM code")
     es = e.add_subparsers(dest="target", required=True)
     x = es.add_parser("liggghts", help="a LIGGGHTS-PUBLIC 3.8 case: jar STL, input deck, start positions, run.sh")
-    x.add_argument("preset", help=PRESET_HELP)
+    x.add_argument("preset", nargs="?", default=DEFAULT_PRESET, help=PRESET_HELP)
     x.add_argument("--out", required=True, help="case directory to write")
     x.add_argument("--overwrite", action="store_true", help="replace an existing case directory")
     x.add_argument("--strict", action="store_true",

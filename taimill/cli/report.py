@@ -8,7 +8,7 @@ import math
 import os
 from pathlib import Path
 
-from taimill.cli.common import number, path_text
+from taimill.cli.common import number, path_text, stations_text
 from taimill.model.mechanisms import STRESS_MIN_UN
 
 
@@ -200,7 +200,7 @@ def text_report(q: dict) -> str:
     lines += [f"stress-event rate {_f(e.get('collision_rate'), 1, ' /s')}; dissipated power {_f(q['dissipated_power'], 1, ' W')} "
               f"(one jar); energy balance error {_f(q['energy_balance_error'], 100, ' %')}"]
     if q.get("stations"):
-        lines.append(f"whole mill ({q['stations']} stations): impact power {_f(q.get('impact_power_mill'), 1, ' W')}, "
+        lines.append(f"whole mill ({stations_text(q['stations'])}): impact power {_f(q.get('impact_power_mill'), 1, ' W')}, "
                      f"dissipated power {_f(q.get('dissipated_power_mill'), 1, ' W')}")
     lines += [f"randomness index 1/σ {_f(q['randomness_index'])}",
               f"regime {q['regime']}, class {q.get('regime_class', '–')} (confidence {_f(q['regime_confidence'])}; "

@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 
-from taimill.cli.common import (EXIT_UNSTABLE, PRESET_HELP, add_overrides, overrides, path_text, plain, stderr_console,
+from taimill.cli.common import (EXIT_UNSTABLE, DEFAULT_PRESET, PRESET_HELP, add_overrides, overrides, path_text, plain, stderr_console,
                                 summary_table)
 
 
 def register(sub) -> None:
     r = sub.add_parser("run", help="simulate a preset, summarise, store")
-    r.add_argument("preset", type=path_text, help=PRESET_HELP)
+    r.add_argument("preset", type=path_text, nargs="?", default=DEFAULT_PRESET, help=PRESET_HELP)
     r.add_argument("--out", type=path_text, help="zarr store to write (RUN.zarr)")
     r.add_argument("--overwrite", action="store_true", help="replace an existing --out store or --rrd file")
     r.add_argument("--rrd", type=path_text, help="rerun recording to write (RUN.rrd); open it with `taimill view RUN.rrd`")
@@ -77,8 +78,11 @@ def cmd_run(a) -> int:
     if a.json:
         print(json.dumps(plain(summary)))
     else:
-        print(f"{preset.source}: {preset.jar.name} jar, {preset.balls.count} balls, {preset.pair}, "
-              f"Ω = {preset.drive.plate_rpm:g} rpm, K = {preset.drive.ratio:g}")
+        b = preset.balls
+        mill = f"{preset.mill.name}, " if preset.mill is not None else ""
+        print(f"{preset.source}: {mill}{preset.jar.name} jar ({preset.jar.wall_material}), {b.count} balls of "
+              f"{2e3 * b.radius:.4g} mm {b.material.name}, {Path(preset.pair).name}, Ω = {preset.drive.plate_rpm:g} rpm, "
+              f"K = {preset.drive.ratio:g}")
         print(summary_table(summary))
         if a.out:
             print(f"stored in {a.out}")

@@ -10,7 +10,7 @@ import json
 import math
 import sys
 
-from taimill.cli.common import LAW_HELP, PRESET_HELP, integer, name_text, number, path_text
+from taimill.cli.common import LAW_HELP, DEFAULT_PRESET, PRESET_HELP, integer, name_text, number, path_text
 from taimill.errors import ConfigError
 
 REFINE_METRICS = ("mean_se", "mean_se_normal", "mean_se_tangential", "impact_power", "impact_power_normal",
@@ -31,7 +31,7 @@ COLUMNS = (("seed", "seed", 1, "d"),
 def register(subparsers) -> None:
     # K is mostly negative: "--ratio -2:-4:0.2" and "--ratio -1,-2" are values (common.Parser)
     s = subparsers.add_parser("sweep", help="sweep K (and Ω, pair, balls, jar) with batched mills on all cores")
-    s.add_argument("preset", type=path_text, help=PRESET_HELP)
+    s.add_argument("preset", type=path_text, nargs="?", default=DEFAULT_PRESET, help=PRESET_HELP)
     g = s.add_argument_group("swept values: A:B:STEP (inclusive; e.g. 0:-4:0.2), v1,v2,… or one value")
     g.add_argument("--ratio", help="K = ω/Ω + 1 values")
     g.add_argument("--plate-rpm", help="Ω values (rpm)")
@@ -213,7 +213,7 @@ def sweep_table(rows: list[dict], axes=None) -> str:
     stations = sorted({r["stations"] for r in rows if isinstance(r.get("stations"), (int, float)) and r["stations"] > 0})
     if stations:
         text += (f"\npowers of one jar; 'mill' columns: the whole mill, stations × one jar "
-                 f"({', '.join(f'{n:g}' for n in stations)} stations)")
+                 f"({', '.join(f'{n:g}' for n in stations)} station{'s' if stations != [1] else ''})")
     return text
 
 

@@ -8,10 +8,10 @@ import traceback
 
 
 def register(subparsers):
-    from taimill.cli.common import PRESET_HELP, add_overrides as _add_overrides, number, path_text
+    from taimill.cli.common import DEFAULT_PRESET, PRESET_HELP, add_overrides as _add_overrides, number, path_text
 
     t = subparsers.add_parser("tui", help="live terminal UI: tune Ω, the jar speed and friction of a running mill")
-    t.add_argument("preset", type=path_text, help=PRESET_HELP)
+    t.add_argument("preset", type=path_text, nargs="?", default=DEFAULT_PRESET, help=PRESET_HELP)
     t.add_argument("--out-dir", type=path_text, default=".",
                    help="folder for recordings (.rrd, .zarr) and PNG snapshots, created if needed (default .)")
     t.add_argument("--window", type=number, default=4.0, help="sliding window of the readouts, simulated s (default 4)")

@@ -120,15 +120,19 @@ class Mill:
         return Range(-hi, hi, "rpm", live=(0.0, hi))
 
     def estimates_in_use(self, radius_from_mill: bool = True) -> list[str]:
-        """One warning line per estimated number a run on this mill uses: R_p (unless
-        the preset gives its own), a fixed gear or set of gears, the plate speed limits."""
+        """One warning line naming the estimated numbers a run on this mill uses: R_p
+        (unless the preset gives its own), a fixed gear or set of gears, the plate speed
+        limits; none if they are all sourced."""
         g = self.gear
         shown = {"plate_radius_mm": f"R_p = {self.plate_radius * 1e3:g} mm", "gear_ratio": f"gear {g.text} ({g.k_text})",
                  "gear_ratios": f"gears {g.text} ({g.k_text})", "plate_rpm_min": f"lowest plate speed {self.plate_rpm_min or 0:g} rpm",
                  "plate_rpm_max": f"highest plate speed {self.plate_rpm_max or 0:g} rpm"}
         used = [k for k in shown if k != "plate_radius_mm" or radius_from_mill]
-        return [f"mill {self.name}: {shown[k]} is an estimate, not a sourced figure (`taimill mills {self.name}` says whence)"
-                for k in used if self.is_estimate(k)]
+        estimated = [shown[k] for k in used if self.is_estimate(k)]
+        if not estimated:
+            return []
+        return [f"mill {self.name}: {', '.join(estimated)} {'are estimates' if len(estimated) > 1 else 'is an estimate'}, "
+                f"not sourced figures (`taimill mills {self.name}` says whence)"]
 
     def as_dict(self) -> dict:
         """Plain data for a run's resolved configuration."""

@@ -169,6 +169,13 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     rules.one_jar_speed(t.where("jar_rpm"), data.get("ratio"), data.get("jar_rpm"))
     jar_key = "jar_rpm" if t.has("jar_rpm") else "ratio"
     given = jar_key if t.has(jar_key) else None
+    if given and mill.gear.kind == "fixed" and t.where("mill") == "command line" != t.where(given):
+        # the file's jar speed was set for the file's mill: the fixed gear of the mill chosen on
+        # the command line replaces it (said); one given on the command line is refused below
+        warnings.append(f"{given} = {data[given]:g} of {source} is replaced by the gear of {mill.name}: "
+                        f"{mill.gear.text} ({mill.gear.k_text})")
+        t.used.add(given)
+        given = None
     if mill.gear.kind == "fixed":  # K from the gear; a given jar speed is refused
         jar_key, jar_speed = "ratio", rules.gear_ratio(t.where(given) if given else source, given, data.get(given), mill)
     else:

@@ -1,4 +1,5 @@
-"""`taimill presets`, `taimill jars [show NAME]`: what can be run, and the jars drawn."""
+"""`taimill presets`, `taimill jars [show NAME]`, `taimill materials [NAME]`: what can be
+run, the jars drawn, and the materials with their sources."""
 
 from __future__ import annotations
 
@@ -24,6 +25,11 @@ def register(sub) -> None:
     js.add_argument("name", type=name_text, help="jar name (jars/NAME.toml) or path to a jar TOML")
     js.add_argument("--out", type=path_text, help="image to write, .png or .svg (default jar-NAME.png)")
     js.add_argument("--overwrite", action="store_true", help="replace an existing --out image")
+    m = sub.add_parser("materials", help="list ball and jar materials (density, E, nu, e, mu; * marks an estimate); "
+                       "'materials NAME' gives each number's source")
+    m.add_argument("name", nargs="?", type=name_text, help="a material: its numbers and their sources")
+    m.add_argument("--json", action="store_true", help="print the materials as a JSON list, sources included")
+    m.set_defaults(fn=cmd_materials)
 
 
 def first_sentence(path) -> str:
@@ -80,4 +86,40 @@ def cmd_jars(a) -> int:
         ratio = "-" if r["ratio_to_CY"] is None else f"{r['ratio_to_CY']:.3f}"
         print(f"{r['name']:6} {r['area_mm2']:9.1f} {r['volume_ml']:7.2f} {ratio:>6} {r['pieces']:6d} "
               f"{r['fillet_mm']:9g}  {r['description']}")
+    return 0
+
+
+MATERIAL_COLUMNS = (("density_kg_m3", "ρ kg/m³", 8, "g"), ("youngs_modulus_gpa", "E GPa", 6, "g"), ("poisson", "ν", 6, "g"),
+                    ("restitution", "e", 6, "g"), ("restitution_speed_mm_s", "at mm/s", 8, "g"), ("friction", "μ", 5, "g"))
+
+
+def material_row(data) -> dict:
+    """A material's numbers in its file's units, with their sources and estimates."""
+    m = data.material
+    return {"name": data.name, "density_kg_m3": m.density, "youngs_modulus_gpa": m.youngs_modulus / 1e9,
+            "poisson": m.poisson, "restitution": data.restitution,
+            "restitution_speed_mm_s": round(data.restitution_speed * 1e3, 9), "friction": data.friction,
+            "sources": dict(data.sources), "estimates": data.estimates()}
+
+
+def cmd_materials(a) -> int:
+    from taimill.model.materials import material_data, material_names
+
+    names = [a.name] if a.name else material_names()
+    rows = [material_row(material_data(n, "command line", "material")) for n in names]
+    if a.json:
+        print(json.dumps(rows, indent=1, ensure_ascii=False))
+        return 0
+    if a.name:
+        r = rows[0]
+        print(f"{r['name']}:")
+        for key, label, _, fmt in MATERIAL_COLUMNS:
+            mark = "  (estimate)" if key in r["estimates"] else ""
+            print(f"  {label:9} {format(r[key], fmt):>8}{mark}\n            {r['sources'][key]}")
+        return 0
+    print(f"{'material':18}" + "".join(f"{label:>{w + 1}}" for _, label, w, _ in MATERIAL_COLUMNS))
+    for r in rows:
+        print(f"{r['name']:18}" + "".join(f"{format(r[k], f) + ('*' if k in r['estimates'] else ' '):>{w + 1}}"
+                                       for k, _, w, f in MATERIAL_COLUMNS))
+    print("* an estimate, not a measured value: 'taimill materials NAME' says where it comes from")
     return 0

@@ -93,6 +93,7 @@ def overrides(a) -> dict:
         "ratio": a.ratio, "jar_rpm": a.jar_rpm, "plate_rpm": a.plate_rpm, "pair": a.pair,
         "jar": a.jar, "balls.count": a.balls, "seed": a.seed, "duration": getattr(a, "duration", None), "dt": dt,
         "law": a.law, "analysis_start": getattr(a, "analysis_start", None),
+        "balls.material": a.ball_material, "balls.diameter_mm": a.ball_diameter, "jar_material": a.jar_material,
     }
     return {k: v for k, v in given.items() if k not in LIVE_IGNORED or hasattr(a, k)}
 
@@ -106,6 +107,9 @@ def add_overrides(p, live: bool = False):
     g.add_argument("--pair", type=name_text, help="friction pair, e.g. steel-fluorite, or a pair file NAME.toml")
     g.add_argument("--jar", type=name_text, help="jar name (jars/NAME.toml) or path")
     g.add_argument("--balls", type=integer, help="number of balls")
+    g.add_argument("--ball-material", type=name_text, help="ball material (taimill materials), e.g. zirconia")
+    g.add_argument("--ball-diameter", type=number, metavar="MM", help="ball diameter (mm; instead of the preset's size)")
+    g.add_argument("--jar-material", type=name_text, help="the jar's wall material instead of its file's, e.g. zirconia")
     g.add_argument("--seed", type=integer, help="seed of the random ball placement (integer ≥ 0; default: the preset's, else 0)")
     if not live:
         g.add_argument("--duration", type=number,

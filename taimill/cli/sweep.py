@@ -38,6 +38,9 @@ def register(subparsers) -> None:
     g.add_argument("--mu-r", help="rolling resistance μ_r of the pair (0: off)")
     g.add_argument("--balls", help="ball counts, e.g. 6,12,24")
     g.add_argument("--jar", help="jars, e.g. CY,HM")
+    g.add_argument("--jar-material", help="jar wall materials, e.g. aisi-304,zirconia (taimill materials)")
+    g.add_argument("--ball-material", help="ball materials, e.g. steel-c1020,zirconia")
+    g.add_argument("--ball-diameter", help="ball diameters (mm), e.g. 6,12")
     g.add_argument("--replicas", type=integer, default=1, help="R seeds per point (seed … seed+R-1): mean ± 95%% band")
     g.add_argument("--refine", action="store_true", help="add points around the maximum of --refine-metric")
     g.add_argument("--refine-metric", default="mean_se", choices=REFINE_METRICS, metavar="KEY",
@@ -70,7 +73,9 @@ def request(a):
     axes = {}
     for key, opt, kind in (("ratio", "--ratio", float), ("plate_rpm", "--plate-rpm", float), ("pair", "--pair", str),
                            ("balls.count", "--balls", int), ("jar", "--jar", str), ("pair_ball_wall", "--pair-ball-wall", str),
-                           ("friction.mu", "--mu", float), ("friction.mu_r", "--mu-r", float)):
+                           ("friction.mu", "--mu", float), ("friction.mu_r", "--mu-r", float),
+                           ("jar_material", "--jar-material", str), ("balls.material", "--ball-material", str),
+                           ("balls.diameter_mm", "--ball-diameter", float)):
         text = getattr(a, opt[2:].replace("-", "_"))
         if text is not None:
             try:

@@ -20,7 +20,8 @@ from taimill.model.contact.registry import NAMES as LAW_NAMES
 from taimill.model.contact_sets import NormalLaw, contact_laws
 from taimill.model.drive import Drive
 from taimill.model.jars import Jar, load_jar
-from taimill.model.materials import FRICTION_KEYS, Balls, Friction, load_friction, load_material, read_friction
+from taimill.model.materials import (FRICTION_KEYS, Balls, Friction, load_friction, material_data, pair_estimates,
+                                     read_friction)
 from taimill.model.positions import load_positions
 from taimill.model.ranges import RANGES
 from taimill.model.tables import Table, read_toml
@@ -30,10 +31,10 @@ GRAVITY = 9.81  #: m/s²
 # Contact kinds a preset may give its own friction pair and tuning (a coated jar: ball-wall only).
 KINDS = ("ball_ball", "ball_wall")
 # The keys of each kind of table (unknown keys are errors, reported with the nearest known one)
-PRESET_KEYS = ("jar", "pair", "plate_rpm", "ratio", "jar_rpm", "duration", "analysis_start", "dt", "seed", "law",
+PRESET_KEYS = ("jar", "jar_material", "pair", "plate_rpm", "ratio", "jar_rpm", "duration", "analysis_start", "dt", "seed", "law",
                "initial_positions", "ramp_time", "plate_radius_mm", "gravity", "balls", "outputs", "friction",
                *(f"pair_{k}" for k in KINDS), *(f"friction_{k}" for k in KINDS))
-BALLS_KEYS = ("count", "material", "radius_mm")
+BALLS_KEYS = ("count", "material", "radius_mm", "diameter_mm")
 OUTPUTS_KEYS = ("trajectory_rate",)
 
 INLINE_POSITIONS = 1000  # balls; a resolved config lists at most this many start positions
@@ -99,33 +100,42 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
         target[leaf] = value
         if key in ("ratio", "jar_rpm"):
             data.pop("jar_rpm" if key == "ratio" else "ratio", None)
+        if key in ("balls.radius_mm", "balls.diameter_mm") and isinstance(target, dict):  # the command line's size wins
+            target.pop("diameter_mm" if leaf == "radius_mm" else "radius_mm", None)
     overridden = frozenset(k for k, v in overrides.items() if v is not None)
     t = Table(data, source, "", overridden, known=PRESET_KEYS)
 
+    warnings: list[str] = []
     jar = load_jar(t.get("jar", kind=str), t.where("jar"), path.parent)
+    wall = material_data(jar.wall_material, t.where("jar"), "wall_material")
+    if t.has("jar_material"):  # the jar's shape in another material
+        wall = material_data(t.get("jar_material", kind=str), t.where("jar_material"), "jar_material")
+        jar = dataclasses.replace(jar, wall_material=wall.name)
     bt = t.table("balls", known=BALLS_KEYS)
-    material = load_material(bt.get("material", kind=str), source)
-    balls = Balls(
-        bt.get("count", kind=int, **RANGES["balls.count"].bounds),
-        material,
-        bt.get("radius_mm", lo=0, lo_open=True, hi=0.5e3 * min(jar.radius, jar.height)) * 1e-3,
-    )
+    ball = material_data(bt.get("material", kind=str), bt.where("material"), "balls.material")
+    size_key = _size_key(bt)
+    size = bt.get(size_key, lo=0, lo_open=True, hi=(0.5e3 if size_key == "radius_mm" else 1e3) * min(jar.radius, jar.height))
+    balls = Balls(bt.get("count", kind=int, **RANGES["balls.count"].bounds), ball.material,
+                  size * (1e-3 if size_key == "radius_mm" else 0.5e-3))
     bt.done()
-    _check_fill(balls, jar, bt.where("count"), bt.where("radius_mm"), placed=t.has("initial_positions"))
+    _check_fill(balls, jar, bt.where("count"), bt.where(size_key), placed=t.has("initial_positions"))
+    warnings += ball.estimate_notes(("density_kg_m3", "youngs_modulus_gpa", "poisson"), "ball material")
+    warnings += wall.estimate_notes(("youngs_modulus_gpa", "poisson"), "wall material")
 
     pair = t.get("pair", kind=str)
     pair_base = Path.cwd() if t.where("pair") == "command line" else path.parent
     friction, contact = load_friction(pair, t.where("pair"), base=pair_base)
+    warnings += pair_estimates(pair)
     if pair.endswith(".toml"):  # a pair file: its resolved path, valid from any directory
         pair = str((pair_base / pair).resolve())
     ft = t.table("friction", required=False, known=FRICTION_KEYS)
     if ft is not None:  # the pair's friction, tuned by the user
         friction = read_friction(ft, f"{pair} (tuned)", friction)
         ft.done()
-    frictions = [_kind_friction(t, kind, friction, contact, path, pair_base) for kind in KINDS]
+    frictions = [_kind_friction(t, kind, friction, contact, path, pair_base, warnings) for kind in KINDS]
     friction, wall_friction = frictions[0], (frictions[1] if frictions[1] != frictions[0] else None)
     law = t.get("law", None, allowed=LAW_NAMES)
-    ball_ball, ball_wall = contact_laws(contact, law, balls, jar, source)
+    ball_ball, ball_wall = contact_laws(contact, law, balls, jar, source, notes=warnings)
 
     plate_rpm = t.get("plate_rpm", **RANGES["plate_rpm"].bounds)
     if plate_rpm == 0:
@@ -169,14 +179,21 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     if t.has("initial_positions"):
         init = load_positions(t.get("initial_positions", kind=str), path.parent, balls, jar, source)
     t.done()
-    warnings: list[str] = []
     return Preset(
         source, jar, balls, pair, friction, ball_ball, ball_wall, drive, plate_radius,
         duration, analysis_start, dt, is_auto, seed, rate, gravity, init, wall_friction, tuple(warnings),
     )
 
 
-def _kind_friction(t: Table, kind: str, friction: Friction, contact: str, path: Path, pair_base: Path) -> Friction:
+def _size_key(bt: Table) -> str:
+    """"radius_mm" or "diameter_mm": the balls' size is given by exactly one."""
+    rules.one_ball_size(bt.where("diameter_mm"), bt.data.get("radius_mm"), bt.data.get("diameter_mm"))
+    bt.used.update(("radius_mm", "diameter_mm"))
+    return "diameter_mm" if bt.has("diameter_mm") else "radius_mm"
+
+
+def _kind_friction(t: Table, kind: str, friction: Friction, contact: str | None, path: Path, pair_base: Path,
+                   warnings: list) -> Friction:
     """Friction of one contact kind: `pair_KIND` (a pair of the same contact set)
     instead of `pair`, then tuned by `[friction_KIND]`; else the preset's friction."""
     key = f"pair_{kind}"
@@ -184,6 +201,7 @@ def _kind_friction(t: Table, kind: str, friction: Friction, contact: str, path: 
         name = t.get(key, kind=str)
         base = Path.cwd() if t.where(key) == "command line" else pair_base
         friction, own = load_friction(name, t.where(key), key, base)
+        warnings += pair_estimates(name)
         rules.same_contact_set(t.where(key), key, name, own, contact, "`pair` uses",
                                " (the normal laws come from `pair`; pick a pair of the same contact set)")
     ft = t.table(f"friction_{kind}", required=False, known=FRICTION_KEYS)

@@ -29,9 +29,10 @@ from taimill.store.sweep import SweepStore, scalars
 # Swept preset keys, outermost first (ratio innermost: a chunk holds neighbouring K).
 # "friction.mu" is one Coulomb coefficient, μ_s = μ_d, of the preset's pair (both contact
 # kinds unless pair_ball_wall is given); "friction.mu_r" its rolling resistance.
-AXES = ("jar", "balls.count", "pair", "pair_ball_wall", "friction.mu", "friction.mu_r", "plate_rpm", "ratio")
+AXES = ("jar", "jar_material", "balls.material", "balls.diameter_mm", "balls.count", "pair", "pair_ball_wall", "friction.mu", "friction.mu_r", "plate_rpm", "ratio")
 # the table column of each outer axis (refinement finds a combination's curve by them)
-AXIS_COLUMNS = {"jar": "jar", "balls.count": "balls", "pair": "pair_name", "pair_ball_wall": "pair_ball_wall",
+AXIS_COLUMNS = {"jar": "jar", "jar_material": "jar_material", "balls.material": "ball_material",
+                "balls.diameter_mm": "ball_diameter_mm", "balls.count": "balls", "pair": "pair_name", "pair_ball_wall": "pair_ball_wall",
                 "friction.mu": "mu", "friction.mu_r": "mu_r", "plate_rpm": "plate_rpm"}
 MAX_POINTS = 10_000
 # The flattened keys of a resolved configuration each swept file sets: a change to that
@@ -195,7 +196,8 @@ def point_values(p, replica: int) -> dict:
             "ball_mass": p.balls.mass,
             "jar_radius": p.jar.radius, "ball_radius": p.balls.radius, "duration": p.duration,
             "mu": bb.mu_s, "mu_d": bb.mu_d, "mu_r": bb.mu_r, "mu_wall": bw.mu_s, "mu_d_wall": bw.mu_d, "mu_r_wall": bw.mu_r,
-            "pair_name": p.pair, "pair_ball_wall": bw.name}
+            "pair_name": p.pair, "pair_ball_wall": bw.name, "jar_material": p.jar.wall_material,
+            "ball_material": p.balls.material.name, "ball_diameter_mm": round(2e3 * p.balls.radius, 9)}
 
 
 def friction_label(p) -> str:

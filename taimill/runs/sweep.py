@@ -35,6 +35,7 @@ AXIS_COLUMNS = {"jar": "jar", "jar_material": "jar_material", "balls.material": 
                 "balls.diameter_mm": "ball_diameter_mm", "balls.count": "balls", "pair": "pair_name", "pair_ball_wall": "pair_ball_wall",
                 "friction.mu": "mu", "friction.mu_r": "mu_r", "plate_rpm": "plate_rpm"}
 MAX_POINTS = 10_000
+MEDIA_AXES = ("jar_material", "balls.material", "balls.diameter_mm")
 # The flattened keys of a resolved configuration each swept file sets: a change to that
 # file is named by them (content).
 FILE_AXES = {"jar": ("jar",), "pair": ("pair", "friction", "ball_ball", "ball_wall"), "pair_ball_wall": ("wall_friction",)}
@@ -150,6 +151,8 @@ def plan(req: Request, ratios_for=None) -> list[dict]:
             p = load_preset(req.preset, ov)
             # a jar as given: the built-in CY and a user's CY.toml share a name, not a curve
             label = {"jar": fixed["jar"]} if "jar" in fixed else {}
+            if any(k in req.axes for k in MEDIA_AXES):  # the pair label tells the media's curves apart
+                label["pair"] = f"{friction_label(p)}, {media_label(p)}"
             points.append({"overrides": ov, "values": point_values(p, r) | label, "preset": p})
     return points
 
@@ -198,6 +201,11 @@ def point_values(p, replica: int) -> dict:
             "mu": bb.mu_s, "mu_d": bb.mu_d, "mu_r": bb.mu_r, "mu_wall": bw.mu_s, "mu_d_wall": bw.mu_d, "mu_r_wall": bw.mu_r,
             "pair_name": p.pair, "pair_ball_wall": bw.name, "jar_material": p.jar.wall_material,
             "ball_material": p.balls.material.name, "ball_diameter_mm": round(2e3 * p.balls.radius, 9)}
+
+
+def media_label(p) -> str:
+    """The balls and the wall: "zirconia balls Ø12 mm, aisi-304 wall"."""
+    return f"{p.balls.material.name} balls Ø{round(2e3 * p.balls.radius, 9):g} mm, {p.jar.wall_material} wall"
 
 
 def friction_label(p) -> str:

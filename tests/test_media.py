@@ -144,3 +144,37 @@ def test_zirconia_balls_in_a_zirconia_hm_jar_run_through_the_cli():
     assert r.returncode == 0, r.stderr
     r = subprocess.run([sys.executable, "-m", "taimill", "materials"], capture_output=True, text=True, env=env, cwd=ROOT)
     assert r.returncode == 0 and "agate" in r.stdout and "*" in r.stdout and math.isfinite(len(r.stdout))
+
+
+def test_the_restitution_rule_one_material_its_own_two_the_lower_and_flagged():
+    from taimill.model.contact_sets import pair_restitution
+
+    zr, steel = material_data("zirconia"), material_data("aisi-304")
+    assert pair_restitution(zr, zr) == (0.9, zr.restitution_speed, False)
+    assert pair_restitution(zr, steel) == (0.516, steel.restitution_speed, True)
+    assert pair_restitution(steel, zr) == (0.516, steel.restitution_speed, True)
+
+
+@pytest.mark.parametrize("edit, words", [
+    (('poisson = "estimate: no measured value for agate found; between fused silica and quartz"\n', ""),
+     ["material.agate.source.poisson", "missing"]),
+    (('[material.agate.source]\n', '[material.agate.source]\nsize = "a ruler"\n'), ["material.agate.source.size", "unknown key"]),
+    (('poisson = "estimate: no measured value for agate found; between fused silica and quartz"', 'poisson = " "'),
+     ["material.agate.source.poisson", "source"]),
+    (("youngs_modulus_gpa = 80\n", "youngs_modulus_gpa = -80\n"), ["material.agate.youngs_modulus_gpa", "allowed range"]),
+    (("restitution = 0.9\nrestitution_speed_mm_s = 3300\nfriction = 0.67\n\n[material.agate.source]",
+      "restitution = 1.0\nrestitution_speed_mm_s = 3300\nfriction = 0.67\n\n[material.agate.source]"),
+     ["material.agate.restitution", "allowed range"]),
+])
+def test_the_materials_loader_is_strict(tmp_path, monkeypatch, edit, words):
+    from taimill.model import materials
+
+    text = materials.MATERIALS_FILE.read_text()
+    assert edit[0] in text
+    bad = tmp_path / "materials.toml"
+    bad.write_text(text.replace(edit[0], edit[1], 1))
+    monkeypatch.setattr(materials, "MATERIALS_FILE", bad)
+    with pytest.raises(ConfigError) as err:
+        material_data("agate")
+    assert all(w in str(err.value) for w in words), str(err.value)
+    assert "\n" not in str(err.value)

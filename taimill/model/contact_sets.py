@@ -143,7 +143,7 @@ def derived_notes(contact: str | None, ball_name: str, wall_name: str, radius: f
         ("restitution", "restitution_speed_mm_s"), "contact set from material")]
 
 
-def contact_source(contact: str | None, balls: Balls, jar: Jar, source, notes: list | None = None):
+def contact_source(contact: str | None, balls: Balls, jar: Jar, notes: list | None = None):
     """(table, file, name) of the contact set for these balls and jar: the pair's measured
     set where its ball and wall materials are these, else the derived one (its warning
     lines appended to `notes`)."""
@@ -169,7 +169,7 @@ def contact_laws(contact: str | None, law: str | None, balls: Balls, jar: Jar, s
     derived; a derived set's warnings go to `notes`). `override` replaces entries of its
     tables, same keys and units, e.g. {"ball_wall": {"d_mm": 0.1}} (calibration fits);
     range errors then name the command line."""
-    table, file, name = contact_source(contact, balls, jar, source, notes)
+    table, file, name = contact_source(contact, balls, jar, notes)
     Table(table, file, f"contact.{name}.", known=CONTACT_KEYS)
     override = override or {}
     for k in override:

@@ -107,16 +107,17 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
 
     warnings: list[str] = []
     jar = load_jar(t.get("jar", kind=str), t.where("jar"), path.parent)
-    wall = material_data(jar.wall_material, t.where("jar"), "wall_material")
     if t.has("jar_material"):  # the jar's shape in another material
         wall = material_data(t.get("jar_material", kind=str), t.where("jar_material"), "jar_material")
         jar = dataclasses.replace(jar, wall_material=wall.name)
+    else:
+        wall = material_data(jar.wall_material, jar.source, "wall_material")
     bt = t.table("balls", known=BALLS_KEYS)
     ball = material_data(bt.get("material", kind=str), bt.where("material"), "balls.material")
     size_key = _size_key(bt)
     size = bt.get(size_key, lo=0, lo_open=True, hi=(0.5e3 if size_key == "radius_mm" else 1e3) * min(jar.radius, jar.height))
     balls = Balls(bt.get("count", kind=int, **RANGES["balls.count"].bounds), ball.material,
-                  size * (1e-3 if size_key == "radius_mm" else 0.5e-3))
+                  (size if size_key == "radius_mm" else size / 2.0) * 1e-3)
     bt.done()
     _check_fill(balls, jar, bt.where("count"), bt.where(size_key), placed=t.has("initial_positions"))
     warnings += ball.estimate_notes(("density_kg_m3", "youngs_modulus_gpa", "poisson"), "ball material")

@@ -38,7 +38,9 @@ MAX_POINTS = 10_000
 MEDIA_AXES = ("jar_material", "balls.material", "balls.diameter_mm")
 # The flattened keys of a resolved configuration each swept file sets: a change to that
 # file is named by them (content).
-FILE_AXES = {"jar": ("jar",), "pair": ("pair", "friction", "ball_ball", "ball_wall"), "pair_ball_wall": ("wall_friction",)}
+FILE_AXES = {"jar": ("jar",), "pair": ("pair", "friction", "ball_ball", "ball_wall"), "pair_ball_wall": ("wall_friction",),
+             "balls.material": ("balls", "ball_ball", "ball_wall"), "jar_material": ("jar", "ball_wall")}
+AXIS_OPTIONS = {"balls.material": "--ball-material", "balls.diameter_mm": "--ball-diameter"}  # else --KEY
 MAX_AUTO_BATCH = 16
 
 
@@ -184,7 +186,7 @@ def content(req: Request, points: list[dict]) -> dict:
         config = flat(plain(p["preset"].as_dict()))
         digest.update(json.dumps(config, sort_keys=True).encode())
         for key, names in FILE_AXES.items():
-            label = f"--{key.replace('_', '-')} {p['overrides'].get(key)}"
+            label = f"{AXIS_OPTIONS.get(key, '--' + key.replace('_', '-'))} {p['overrides'].get(key)}"
             if key in req.axes and label not in parts:
                 parts[label] = {k: x for k, x in config.items() if k.split(".")[0] in names}
     return {"sha256": digest.hexdigest(), "parts": parts}

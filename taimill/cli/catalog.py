@@ -25,8 +25,8 @@ def register(sub) -> None:
     js.add_argument("name", type=name_text, help="jar name (jars/NAME.toml) or path to a jar TOML")
     js.add_argument("--out", type=path_text, help="image to write, .png or .svg (default jar-NAME.png)")
     js.add_argument("--overwrite", action="store_true", help="replace an existing --out image")
-    m = sub.add_parser("materials", help="list ball and jar materials (density, E, nu, e, mu; * marks an estimate); "
-                       "'materials NAME' gives each number's source")
+    m = sub.add_parser("materials", help="list ball and jar materials (density, E, nu, e, mu) and friction pairs "
+                       "(* marks an estimate); 'materials NAME' gives each number's source")
     m.add_argument("name", nargs="?", type=name_text, help="a material: its numbers and their sources")
     m.add_argument("--json", action="store_true", help="print the materials as a JSON list, sources included")
     m.set_defaults(fn=cmd_materials)
@@ -103,7 +103,7 @@ def material_row(data) -> dict:
 
 
 def cmd_materials(a) -> int:
-    from taimill.model.materials import material_data, material_names
+    from taimill.model.materials import load_friction, material_data, material_names, pair_estimate_keys, pair_names
 
     names = [a.name] if a.name else material_names()
     rows = [material_row(material_data(n, "command line", "material")) for n in names]
@@ -117,9 +117,15 @@ def cmd_materials(a) -> int:
             mark = "  (estimate)" if key in r["estimates"] else ""
             print(f"  {label:9} {format(r[key], fmt):>8}{mark}\n            {r['sources'][key]}")
         return 0
-    print(f"{'material':18}" + "".join(f"{label:>{w + 1}}" for _, label, w, _ in MATERIAL_COLUMNS))
+    print(f"{'material':18}" + "".join(f"{label:>{w}} " for _, label, w, _ in MATERIAL_COLUMNS))
     for r in rows:
         print(f"{r['name']:18}" + "".join(f"{format(r[k], f) + ('*' if k in r['estimates'] else ' '):>{w + 1}}"
                                        for k, _, w, f in MATERIAL_COLUMNS))
     print("* an estimate, not a measured value: 'taimill materials NAME' says where it comes from")
+    print(f"\n{'friction pair':20} {'μ_s':>6} {'μ_d':>6}  measured contact set")
+    for name in pair_names():
+        friction, contact = load_friction(name, "command line")
+        marks = {k: "*" if k in pair_estimate_keys(name) else " " for k in ("mu_s", "mu_d")}
+        print(f"{name:20} {friction.mu_s:>5g}{marks['mu_s']} {friction.mu_d:>5g}{marks['mu_d']}  "
+              f"{contact or '(none: always derived from the materials)'}")
     return 0

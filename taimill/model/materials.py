@@ -140,14 +140,28 @@ def load_friction(name: str, source, key="pair", base: Path | None = None) -> tu
     return friction, contact
 
 
+def pair_names() -> list[str]:
+    return list(_materials_db()["pair"])
+
+
+def _pair_sources(name: str) -> tuple[dict, dict]:
+    """(table, {key: source text}) of a built-in pair; ({}, {}) for a pair file."""
+    table = {} if name.endswith(".toml") else _materials_db()["pair"].get(name, {})
+    sources = table.get("source", {}) if isinstance(table, dict) else {}
+    return table, sources
+
+
+def pair_estimate_keys(name: str) -> list[str]:
+    """The keys of a built-in pair whose numbers are estimates (assumptions)."""
+    table, sources = _pair_sources(name)
+    return [k for k, text in sources.items() if is_estimate(text) and k in table]
+
+
 def pair_estimates(name: str) -> list[str]:
     """Warning lines for a built-in pair's numbers that are estimates (assumptions)."""
-    if name.endswith(".toml"):
-        return []
-    table = _materials_db()["pair"].get(name, {})
-    sources = table.get("source", {}) if isinstance(table, dict) else {}
-    return [f"pair {name}: {k} = {table[k]:g} is an estimate (an assumption, not a measurement): {text}"
-            for k, text in sources.items() if is_estimate(text) and k in table]
+    table, sources = _pair_sources(name)
+    return [f"pair {name}: {k} = {table[k]:g} is an estimate (an assumption, not a measurement): {sources[k]}"
+            for k in pair_estimate_keys(name)]
 
 
 def _pair_file(name: str, source, key, base: Path | None) -> tuple[Friction, str]:

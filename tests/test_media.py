@@ -180,3 +180,36 @@ def test_the_materials_loader_is_strict(tmp_path, monkeypatch, edit, words):
         material_data("agate")
     assert all(w in str(err.value) for w in words), str(err.value)
     assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("pair, ball, wall, radius", [("steel-steel", "steel-c1020", "aisi-304", 6e-3),
+                                                      ("zirconia-zirconia", "zirconia", "zirconia", 3e-3)])
+def test_a_derived_adams_impact_set_rebounds_like_the_thesis_measured_one(pair, ball, wall, radius):
+    """With law = adams-impact a derived set is the thesis' own derivation (c_max of eq
+    3.5, d fitted at the reference speed): its e hits the material's e at that speed and
+    follows the measured set's speed dependence over the drop range (RK4 impacts)."""
+    import numpy as np
+
+    from taimill.model import laws
+    from taimill.model.contact_sets import pair_contact
+
+    balls = Balls(1, material_data(ball).material, radius)
+    jar = Jar("plate", "drop test", 10.0, wall, (("circle", {"radius": 1.0}),))
+    _, derived = contact_laws(None, "adams-impact", balls, jar, "test")
+    measured = pair_contact(pair)[3]
+    e_at_ref = laws.simulate_impact(derived.model, derived.k, derived.c, derived.d, derived.m_eff, derived.u_ref)["e"][0]
+    assert e_at_ref == pytest.approx(material_data(ball).restitution, rel=1e-3)
+    v = np.sqrt(2 * 9.81 * np.array(DROP_HEIGHTS_MM) * 1e-3)
+    e_derived, e_measured = (laws.simulate_impact(law.model, law.k, law.c, law.d, law.m_eff, v)["e"] for law in (derived, measured))
+    np.testing.assert_allclose(e_derived, e_measured, rtol=0.02)
+
+
+def test_the_ball_diameter_option_is_the_radius_key_halved():
+    from taimill.cli import parser
+    from taimill.cli.common import overrides
+
+    a = parser().parse_args(["run", HM_STEEL, "--ball-diameter", "12", "--ball-material", "steel-c1020",
+                             "--jar-material", "aisi-304"])
+    given = overrides(a)
+    assert (given["balls.diameter_mm"], given["balls.material"], given["jar_material"]) == (12.0, "steel-c1020", "aisi-304")
+    assert load_preset(HM_STEEL, given) == load_preset(HM_STEEL)

@@ -119,7 +119,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     balls = Balls(bt.get("count", kind=int, **RANGES["balls.count"].bounds), ball.material,
                   (size if size_key == "radius_mm" else size / 2.0) * 1e-3)
     bt.done()
-    _check_fill(balls, jar, bt.where("count"), bt.where(size_key), placed=t.has("initial_positions"))
+    _check_fill(balls, jar, bt.where("count"), bt.where(size_key), placed=t.has("initial_positions"), size_key=size_key)
     warnings += ball.estimate_notes(("density_kg_m3", "youngs_modulus_gpa", "poisson"), "ball material")
     warnings += wall.estimate_notes(("youngs_modulus_gpa", "poisson"), "wall material")
 
@@ -212,7 +212,7 @@ def _kind_friction(t: Table, kind: str, friction: Friction, contact: str | None,
     return friction
 
 
-def _check_fill(balls: Balls, jar: Jar, source, radius_source, placed=False):
+def _check_fill(balls: Balls, jar: Jar, source, radius_source, placed=False, size_key="radius_mm"):
     """Random loose packing reaches ~0.55; refuse fills that cannot be placed at random
     (given positions are checked ball by ball instead: a settled bed is denser). A ball
     larger than the fillets would touch both walls of a corner while the side-wall
@@ -220,8 +220,10 @@ def _check_fill(balls: Balls, jar: Jar, source, radius_source, placed=False):
     fill = balls.count * 4.0 / 3.0 * math.pi * balls.radius**3 / jar.volume
     if fill > 0.45 and not placed:
         raise ConfigError(source, "balls.count", balls.count, f"balls fill {fill:.0%} of the jar; at most 45% can be placed at random")
+    scale = 2.0 if size_key == "diameter_mm" else 1.0  # the size as it was given
     if 2 * balls.radius >= jar.height or balls.radius >= jar.radius:
-        raise ConfigError(radius_source, "balls.radius_mm", balls.radius * 1e3, "balls must fit in the jar")
+        raise ConfigError(radius_source, f"balls.{size_key}", scale * balls.radius * 1e3, "balls must fit in the jar")
     if len(jar.profile.pieces) > 1 and balls.radius > jar.fillet:
-        raise ConfigError(radius_source, "balls.radius_mm", balls.radius * 1e3,
-                          f"allowed range (0, {jar.fillet * 1e3:g}]: jar {jar.name}'s corners are rounded to {jar.fillet * 1e3:g} mm")
+        raise ConfigError(radius_source, f"balls.{size_key}", scale * balls.radius * 1e3,
+                          f"allowed range (0, {scale * jar.fillet * 1e3:g}]: jar {jar.name}'s corners are rounded to "
+                          f"{jar.fillet * 1e3:g} mm")

@@ -102,7 +102,7 @@ def test_sweep_rejects_bad_input_before_running_anything(tmp_path):
     out = tmp_path / "s.zarr"
     for args, key in ((("--ratio", "0:-4:0"), "--ratio"), (("--replicas", 0), "--replicas"),
                       (("--ratio", "-1,-2", "--refine"), "--ratio"), (("--workers", 2, "--scheduler", "tcp://x:1"), "--workers"),
-                      (("--pair", "zirconia-zirconia"), "balls.material"), (("--batch", 0), "--batch")):
+                      (("--ball-material", "gold"), "balls.material"), (("--batch", 0), "--batch")):
         res = taimill("sweep", PRESET, *args, "--out", out)
         assert res.returncode == 2, (args, res.stderr)
         assert key in res.stderr and len(res.stderr.strip().splitlines()) == 1

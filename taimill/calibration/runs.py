@@ -146,14 +146,17 @@ def run_drops(drops: list[Drop]) -> list[dict]:
     return [drop_result(d, s, *out) for d, s, out in zip(drops, specs, run_specs(specs))]
 
 
-def drop_tests(pair: str, heights, *, target="plate", radius=None, law=None, contact=None, dt=None) -> list[dict]:
+def drop_tests(pair: str, heights, *, target="plate", radius=None, law=None, contact=None, dt=None,
+               ball_material=None, wall_material=None) -> list[dict]:
     """Drop tests of a friction pair (name or pair file) from each height in `heights`
-    (m); `contact` overrides contact-set entries (contact_sets.pair_contact); dt (s) is one
-    value, one per height, or None for the automatic dt. See `drop_result`."""
-    ball, jar, bb, bw, friction = pair_contact(pair, radius, law, contact=contact)
+    (m); `contact` overrides contact-set entries, ball_material / wall_material other than
+    the set's give its derived set (contact_sets.pair_contact); dt (s) is one value, one
+    per height, or None for the automatic dt. See `drop_result`."""
+    ball, jar, bb, bw, friction = pair_contact(pair, radius, law, contact=contact, ball_material=ball_material,
+                                               wall_material=wall_material)
     dts = dt if np.ndim(dt) else [dt] * len(heights)
     out = run_drops([Drop(ball, jar, bb, bw, friction, h, target, t) for h, t in zip(heights, dts)])
-    return [r | {"pair": pair} for r in out]
+    return [r | {"pair": pair, "ball_material": ball.material.name, "wall_material": jar.wall_material} for r in out]
 
 
 def drop_test(pair: str, h0: float, *, target="plate", radius=None, law=None, dt=None, contact=None) -> dict:

@@ -55,14 +55,19 @@ def cmd_drop(a) -> int:
     heights = [_check(h, "--h0", 0, MAX_H0_MM, "mm (drop height)") for h in a.h0]
     if a.radius_mm is not None:
         _check(a.radius_mm, "--radius-mm", 0, 100, "mm")
-    pair_contact(a.pair, law=a.law)  # bad input is reported before taichi starts
+    media = dict(ball_material=a.ball_material, wall_material=a.wall_material)
+    radius = None if a.radius_mm is None else a.radius_mm * 1e-3
+    notes = []
+    pair_contact(a.pair, radius, law=a.law, notes=notes, **media)  # bad input is reported before taichi starts
     _check_figure(a)
+    for w in notes:
+        print(f"taimill: warning: {w}", file=sys.stderr)
     from taimill.calibration.runs import drop_tests
 
-    rs = drop_tests(a.pair, [h * 1e-3 for h in heights], target=a.target, law=a.law,
-                    radius=None if a.radius_mm is None else a.radius_mm * 1e-3)
+    rs = drop_tests(a.pair, [h * 1e-3 for h in heights], target=a.target, law=a.law, radius=radius, **media)
     r = rs[0]
-    head = (f"{r['pair']} ({r['law']}), ball of {r['ball_radius'] * 1e3:g} mm radius on the {r['target']}")
+    head = (f"{r['pair']} ({r['law']}), {r['ball_material']} ball of {r['ball_radius'] * 1e3:g} mm radius on the "
+            f"{r['target']}" + (f" of {r['wall_material']}" if r["target"] == "plate" else ""))
     if len(rs) == 1:
         text = "\n".join([
             f"{head}, from h0 = {heights[0]:g} mm ({r['impact_speed']:.3f} m/s):",
@@ -220,6 +225,8 @@ def register(sub):
     d.add_argument("--h0", type=number, nargs="+", required=True, metavar="MM", help="drop height(s) (mm)")
     d.add_argument("--target", choices=("plate", "ball"), default="plate")
     d.add_argument("--radius-mm", type=number, help="ball radius (default: the pair's fitted balls)")
+    d.add_argument("--ball-material", type=name_text, help="ball material other than the pair's contact set's: its derived set (docs/media.md)")
+    d.add_argument("--wall-material", type=name_text, help="plate material other than the pair's contact set's: its derived set")
     d.set_defaults(fn=cmd_drop)
 
     f = csub.add_parser("fit", help="fit d (or c_max; e for other laws) to measured drop tests, write a pair file")

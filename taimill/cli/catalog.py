@@ -1,7 +1,8 @@
-"""`taimill presets`, `taimill jars [show NAME | new NAME]`, `taimill mills [NAME]`: what can
-be run (the bundled presets, jars, bowls and mills, by name from any folder), the jars
-drawn, a cylinder jar built from a bowl's volume and diameter, and the planetary mills
-with where each of their numbers comes from."""
+"""`taimill presets`, `taimill jars [show NAME | new NAME]`, `taimill mills [NAME]`,
+`taimill materials [NAME]`: what can be run (the bundled presets, jars, bowls and mills,
+by name from any folder), the jars drawn, a cylinder jar built from a bowl's volume and
+diameter, the planetary mills and the materials, with where each of their numbers comes
+from."""
 
 from __future__ import annotations
 
@@ -42,6 +43,11 @@ def register(sub) -> None:
     m = sub.add_parser("mills", help="list planetary mills (R_p, gear, speeds, bowls; * marks estimates); 'mills NAME' shows one with sources")
     m.add_argument("name", nargs="?", type=name_text, help="mill name or mill file NAME.toml")
     m.set_defaults(fn=cmd_mills)
+    mt = sub.add_parser("materials", help="list ball and jar materials (density, E, nu, e, mu) and friction pairs "
+                       "(* marks an estimate); 'materials NAME' gives each number's source")
+    mt.add_argument("name", nargs="?", type=name_text, help="a material: its numbers and their sources")
+    mt.add_argument("--json", action="store_true", help="print the materials as a JSON list, sources included")
+    mt.set_defaults(fn=cmd_materials)
 
 
 def first_sentence(path) -> str:
@@ -228,4 +234,46 @@ def cmd_mills(a) -> int:
         print("  ".join(v.ljust(w) for v, w in zip(r, widths)).rstrip())
     if any(o.estimate for m in mills for o in m.origins):
         print("* estimate: not verified against a source (`taimill mills NAME` says where each number comes from)")
+    return 0
+
+
+MATERIAL_COLUMNS = (("density_kg_m3", "ρ kg/m³", 8, "g"), ("youngs_modulus_gpa", "E GPa", 6, "g"), ("poisson", "ν", 6, "g"),
+                    ("restitution", "e", 6, "g"), ("restitution_speed_mm_s", "at mm/s", 8, "g"), ("friction", "μ", 5, "g"))
+
+
+def material_row(data) -> dict:
+    """A material's numbers in its file's units, with their sources and estimates."""
+    m = data.material
+    return {"name": data.name, "density_kg_m3": m.density, "youngs_modulus_gpa": m.youngs_modulus / 1e9,
+            "poisson": m.poisson, "restitution": data.restitution,
+            "restitution_speed_mm_s": round(data.restitution_speed * 1e3, 9), "friction": data.friction,
+            "sources": dict(data.sources), "estimates": data.estimates()}
+
+
+def cmd_materials(a) -> int:
+    from taimill.model.materials import load_friction, material_data, material_names, pair_estimate_keys, pair_names
+
+    names = [a.name] if a.name else material_names()
+    rows = [material_row(material_data(n, "command line", "material")) for n in names]
+    if a.json:
+        print(json.dumps(rows, indent=1, ensure_ascii=False))
+        return 0
+    if a.name:
+        r = rows[0]
+        print(f"{r['name']}:")
+        for key, label, _, fmt in MATERIAL_COLUMNS:
+            mark = "  (estimate)" if key in r["estimates"] else ""
+            print(f"  {label:9} {format(r[key], fmt):>8}{mark}\n            {r['sources'][key]}")
+        return 0
+    print(f"{'material':18}" + "".join(f"{label:>{w}} " for _, label, w, _ in MATERIAL_COLUMNS))
+    for r in rows:
+        print(f"{r['name']:18}" + "".join(f"{format(r[k], f) + ('*' if k in r['estimates'] else ' '):>{w + 1}}"
+                                       for k, _, w, f in MATERIAL_COLUMNS))
+    print("* an estimate, not a measured value: 'taimill materials NAME' says where it comes from")
+    print(f"\n{'friction pair':20} {'μ_s':>6} {'μ_d':>6}  measured contact set")
+    for name in pair_names():
+        friction, contact = load_friction(name, "command line")
+        marks = {k: "*" if k in pair_estimate_keys(name) else " " for k in ("mu_s", "mu_d")}
+        print(f"{name:20} {friction.mu_s:>5g}{marks['mu_s']} {friction.mu_d:>5g}{marks['mu_d']}  "
+              f"{contact or '(none: always derived from the materials)'}")
     return 0

@@ -102,6 +102,7 @@ def overrides(a) -> dict:
         "jar": a.jar, "mill": a.mill, "jar_volume_ml": a.jar_volume, "balls.count": a.balls, "balls.filling": a.filling,
         "powder.mass_g": a.powder_mass, "seed": a.seed, "duration": getattr(a, "duration", None), "dt": dt,
         "law": a.law, "analysis_start": getattr(a, "analysis_start", None),
+        "balls.material": a.ball_material, "balls.diameter_mm": a.ball_diameter, "jar_material": a.jar_material,
     }
     return {k: v for k, v in given.items() if k not in LIVE_IGNORED or hasattr(a, k)}
 
@@ -121,6 +122,9 @@ def add_overrides(p, live: bool = False):
     g.add_argument("--filling", type=number,
                    help="ball filling degree: the ball bed's bulk volume / the jar's (about 1/3 is usual); sets the ball count")
     g.add_argument("--powder-mass", type=number, help="powder charged (g): recorded with the run, not simulated")
+    g.add_argument("--ball-material", type=name_text, help="ball material (taimill materials), e.g. zirconia")
+    g.add_argument("--ball-diameter", type=number, metavar="MM", help="ball diameter (mm; instead of the preset's size)")
+    g.add_argument("--jar-material", type=name_text, help="the jar's wall material instead of its file's, e.g. zirconia")
     g.add_argument("--seed", type=integer, help="seed of the random ball placement (integer ≥ 0; default: the preset's, else 0)")
     if not live:
         g.add_argument("--duration", type=number,

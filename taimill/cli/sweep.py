@@ -42,6 +42,10 @@ def register(subparsers) -> None:
     g.add_argument("--balls", help="ball counts, e.g. 6,12,24")
     g.add_argument("--jar", help="jars, e.g. CY,HM")
     g.add_argument("--mill", help="planetary mills (names or mill files), e.g. retsch-pm100,fritsch-p7-premium")
+    g.add_argument("--jar-volume", help="the mill's bowls by volume (ml), e.g. 50,80,125")
+    g.add_argument("--jar-material", help="jar wall materials, e.g. aisi-304,zirconia (taimill materials)")
+    g.add_argument("--ball-material", help="ball materials, e.g. steel-c1020,zirconia")
+    g.add_argument("--ball-diameter", help="ball diameters (mm), e.g. 6,12")
     g.add_argument("--replicas", type=integer, default=1, help="R seeds per point (seed … seed+R-1): mean ± 95%% band")
     g.add_argument("--refine", action="store_true", help="add points around the maximum of --refine-metric")
     g.add_argument("--refine-metric", default="mean_se", choices=REFINE_METRICS, metavar="KEY",
@@ -73,8 +77,11 @@ def request(a):
 
     axes = {}
     for key, opt, kind in (("ratio", "--ratio", float), ("plate_rpm", "--plate-rpm", float), ("pair", "--pair", str),
-                           ("balls.count", "--balls", int), ("jar", "--jar", str), ("mill", "--mill", str), ("pair_ball_wall", "--pair-ball-wall", str),
-                           ("friction.mu", "--mu", float), ("friction.mu_r", "--mu-r", float)):
+                           ("balls.count", "--balls", int), ("jar", "--jar", str), ("mill", "--mill", str),
+                           ("jar_volume_ml", "--jar-volume", int), ("pair_ball_wall", "--pair-ball-wall", str),
+                           ("friction.mu", "--mu", float), ("friction.mu_r", "--mu-r", float),
+                           ("jar_material", "--jar-material", str), ("balls.material", "--ball-material", str),
+                           ("balls.diameter_mm", "--ball-diameter", float)):
         text = getattr(a, opt[2:].replace("-", "_"))
         if text is not None:
             try:
@@ -110,6 +117,8 @@ def cmd_sweep(a) -> int:
     req, run_kw = request(a)
     with reads() as inputs:
         points = plan(req)  # every point validated before a store is touched or a kernel runs
+    for w in dict.fromkeys(w for p in points for w in p["preset"].warnings):  # each once, not once per point
+        print(f"taimill: warning: {w}", file=sys.stderr)
     if a.out:  # its folder must exist and be writable (an existing store: the store's own rules)
         check_output(a.out, "--out", overwrite=None)
     if a.map:

@@ -133,6 +133,31 @@ def calibrate_dampings(contacts):
     return [_DAMPING[args] for args in contacts]
 
 
+_DEPTH: dict = {}  # calibrate_depth's results by their arguments
+
+
+def calibrate_depth(law: NormalModel, e, k, c, m_eff, u_ref):
+    """Full-damping penetration d (m) such that a head-on impact at u_ref (m/s) with
+    damping c_max = c rebounds with restitution e: the thesis' fit of d to a drop test
+    (§2.1, Fig 2.5) on a simulated impact. e rises with d (less of c_max is reached), so
+    d is bisected on a log grid from 10⁻³ to 10³ Hertz peak overlaps at u_ref."""
+    args = (law, e, k, c, m_eff, u_ref)
+    if args in _DEPTH:
+        return _DEPTH[args]
+    if not 0.0 < e < 1.0:
+        raise ValueError(f"restitution e = {e} must lie in (0, 1)")
+    u_max = ((law.n + 1.0) * m_eff * u_ref**2 / (2.0 * k)) ** (1.0 / (law.n + 1.0))
+    lo, hi = math.log(1e-3 * u_max), math.log(1e3 * u_max)
+    for _ in range(5):
+        grid = np.linspace(lo, hi, 17)
+        got = np.nan_to_num(simulate_impact(law, k, np.full(17, float(c)), np.exp(grid), m_eff, u_ref)["e"], nan=0.0)
+        below = got < e  # e rises with d
+        i = int(np.argmin(below)) if not below.all() else len(grid) - 1
+        lo, hi = grid[max(i - 1, 0)], grid[i]
+    _DEPTH[args] = math.exp(0.5 * (lo + hi))
+    return _DEPTH[args]
+
+
 # Impact speeds at which auto_dt looks for the shortest contact, as fractions of v_max.
 # A damped contact is not shortest at the highest speed: the Adams steel contact is
 # shortest near 6 m/s and 9 % longer at 12 m/s (tests/test_laws.py). The duration has

@@ -12,12 +12,13 @@ from taimill.errors import ConfigError
 from taimill.model import files, rules
 from taimill.model.contact.registry import DEFAULT_ROLLING, DEFAULT_TANGENTIAL, ROLLING, TANGENTIAL
 from taimill.model.ranges import RANGES
-from taimill.model.tables import Table, read_toml
+from taimill.model.tables import Table, is_estimate, read_toml
 
 MATERIALS_FILE = files.PACKAGE / "data" / "materials.toml"
 # The keys of each kind of table (unknown keys are errors, reported with the nearest known one)
 FRICTION_KEYS = ("mu_s", "mu_d", "v_s_mm_s", "v_d_mm_s", "mu_r", "tangential", "rolling")
-MATERIAL_KEYS = ("density_kg_m3", "youngs_modulus_gpa", "poisson")
+MATERIAL_NUMBERS = ("density_kg_m3", "youngs_modulus_gpa", "poisson", "restitution", "restitution_speed_mm_s", "friction")
+MATERIAL_KEYS = (*MATERIAL_NUMBERS, "source")
 
 
 @dataclass(frozen=True)
@@ -26,6 +27,32 @@ class Material:
     density: float  #: kg/m³
     youngs_modulus: float  #: Pa
     poisson: float  #: -
+
+
+@dataclass(frozen=True)
+class MaterialData:
+    """A material with what contact sets are derived from and where each number comes
+    from (taimill/data/materials.toml). `Material` alone is what runs carry."""
+
+    material: Material
+    restitution: float  #: e of a ball on a plate of this material, at `restitution_speed`
+    restitution_speed: float  #: m/s
+    friction: float  #: dry sliding friction coefficient, self-mated (listings only)
+    sources: dict  #: {file key: source text}; texts starting "estimate" mark estimates
+
+    @property
+    def name(self) -> str:
+        return self.material.name
+
+    def estimates(self, keys=MATERIAL_NUMBERS) -> list[str]:
+        """The file keys among `keys` whose numbers are estimates."""
+        return [k for k in keys if is_estimate(self.sources.get(k, ""))]
+
+    def estimate_notes(self, keys, role: str) -> list[str]:
+        """One warning line per estimated number among `keys` (role: how the run uses
+        the material, e.g. "ball material")."""
+        return [f"{role} {self.name}: {k} is an estimate, not a measured value ({self.sources[k]})"
+                for k in self.estimates(keys)]
 
 
 @dataclass(frozen=True)
@@ -64,10 +91,19 @@ def _materials_db():
     return read_toml(MATERIALS_FILE, "materials")
 
 
-def load_material(name: str, source="material") -> Material:
+def material_names() -> list[str]:
+    return list(_materials_db()["material"])
+
+
+def load_material(name: str, source="material", key="material") -> Material:
+    return material_data(name, source, key).material
+
+
+def material_data(name: str, source="material", key="material") -> MaterialData:
+    """A built-in material, every number checked and with its source."""
     db = _materials_db()["material"]
     if name not in db:
-        raise ConfigError(source, "material", name, f"must be one of {', '.join(db)}")
+        raise ConfigError(source, key, name, f"must be one of {', '.join(db)}")
     t = Table(db[name], MATERIALS_FILE, f"material.{name}.", known=MATERIAL_KEYS)
     m = Material(
         name,
@@ -75,24 +111,57 @@ def load_material(name: str, source="material") -> Material:
         t.get("youngs_modulus_gpa", lo=0, lo_open=True, hi=2000) * 1e9,
         t.get("poisson", lo=-1, lo_open=True, hi=0.5),
     )
+    data = MaterialData(
+        m,
+        t.get("restitution", lo=0, lo_open=True, hi=0.999),  # < 1: damping is calibrated to it
+        t.get("restitution_speed_mm_s", lo=0, lo_open=True, hi=1e5) * 1e-3,
+        t.get("friction", **RANGES["mu_s"].bounds),
+        t.sources(MATERIAL_NUMBERS),
+    )
     t.done()
-    return m
+    return data
 
 
 def load_friction(name: str, source, key="pair", base: Path | None = None) -> tuple[Friction, str]:
     """A built-in pair, or a pair file (NAME ending in .toml, relative to `base`):
-    (friction, contact-set id for `contact_laws`)."""
+    (friction, contact-set id for `contact_laws`; None: a pair without a measured set,
+    whose normal laws are always derived from the materials)."""
     files.check_path_text(name, source, key, "a pair name or pair file")
     if name.endswith(".toml"):
         return _pair_file(name, source, key, base)
     db = _materials_db()
     if name not in db["pair"]:
         raise ConfigError(source, key, name, f"must be one of {', '.join(db['pair'])}, or a pair file NAME.toml")
-    t = Table(db["pair"][name], MATERIALS_FILE, f"pair.{name}.", known=("contact", *FRICTION_KEYS))
-    contact = t.get("contact", kind=str)
+    t = Table(db["pair"][name], MATERIALS_FILE, f"pair.{name}.", known=("contact", "source", *FRICTION_KEYS))
+    contact = t.get("contact", None, kind=str)
     friction = read_friction(t, name)
+    t.sources(FRICTION_KEYS, required=False)
     t.done()
     return friction, contact
+
+
+def pair_names() -> list[str]:
+    return list(_materials_db()["pair"])
+
+
+def _pair_sources(name: str) -> tuple[dict, dict]:
+    """(table, {key: source text}) of a built-in pair; ({}, {}) for a pair file."""
+    table = {} if name.endswith(".toml") else _materials_db()["pair"].get(name, {})
+    sources = table.get("source", {}) if isinstance(table, dict) else {}
+    return table, sources
+
+
+def pair_estimate_keys(name: str) -> list[str]:
+    """The keys of a built-in pair whose numbers are estimates (assumptions)."""
+    table, sources = _pair_sources(name)
+    return [k for k, text in sources.items() if is_estimate(text) and k in table]
+
+
+def pair_estimates(name: str) -> list[str]:
+    """Warning lines for a built-in pair's numbers that are estimates (assumptions)."""
+    table, sources = _pair_sources(name)
+    return [f"pair {name}: {k} = {table[k]:g} is an estimate (an assumption, not a measurement): {sources[k]}"
+            for k in pair_estimate_keys(name)]
 
 
 def _pair_file(name: str, source, key, base: Path | None) -> tuple[Friction, str]:

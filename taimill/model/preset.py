@@ -22,7 +22,8 @@ from taimill.model.drive import Drive
 from taimill.model.jars import Jar, load_jar
 from taimill.model import mills
 from taimill.model.mills import Mill, load_mill
-from taimill.model.materials import (FRICTION_KEYS, Balls, Friction, contact_table, load_friction, load_material,
+from taimill.model.materials import (FRICTION_KEYS, Balls, Friction, contact_table, load_friction, material_data,
+                                     pair_estimates,
                                      read_friction)
 from taimill.model.positions import load_positions
 from taimill.model.ranges import RANGES
@@ -33,15 +34,16 @@ GRAVITY = 9.81  #: m/s²
 # Contact kinds a preset may give its own friction pair and tuning (a coated jar: ball-wall only).
 KINDS = ("ball_ball", "ball_wall")
 # The keys of each kind of table (unknown keys are errors, reported with the nearest known one)
-PRESET_KEYS = ("mill", "jar", "jar_volume_ml", "pair", "plate_rpm", "ratio", "jar_rpm", "duration", "analysis_start", "dt",
-               "seed", "law", "initial_positions", "ramp_time", "plate_radius_mm", "gravity", "balls", "powder", "outputs",
-               "friction",
+PRESET_KEYS = ("mill", "jar", "jar_volume_ml", "jar_material", "pair", "plate_rpm", "ratio", "jar_rpm", "duration",
+               "analysis_start", "dt", "seed", "law", "initial_positions", "ramp_time", "plate_radius_mm", "gravity", "balls",
+               "powder", "outputs", "friction",
                *(f"pair_{k}" for k in KINDS), *(f"friction_{k}" for k in KINDS))
-BALLS_KEYS = ("count", "filling", "material", "radius_mm")
+BALLS_KEYS = ("count", "filling", "material", "radius_mm", "diameter_mm")
 POWDER_KEYS = ("mass_g", "ball_to_powder")
 #: an override of one key drops the other from the file (the command line wins)
 EXCLUSIVE = {"ratio": "jar_rpm", "jar_rpm": "ratio", "balls.count": "balls.filling", "balls.filling": "balls.count",
-             "powder.mass_g": "powder.ball_to_powder", "jar": "jar_volume_ml", "jar_volume_ml": "jar"}
+             "powder.mass_g": "powder.ball_to_powder", "jar": "jar_volume_ml", "jar_volume_ml": "jar",
+             "balls.radius_mm": "balls.diameter_mm", "balls.diameter_mm": "balls.radius_mm"}
 OUTPUTS_KEYS = ("trajectory_rate",)
 
 INLINE_POSITIONS = 1000  # balls; a resolved config lists at most this many start positions
@@ -133,13 +135,22 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     # a jar file named on the command line is relative to the current folder, in a preset to the preset's
     jar_src = t.where("jar_volume_ml" if t.has("jar_volume_ml") else "jar")
     jar = load_jar(_jar_name(t, mill, warnings), jar_src, None if jar_src == "command line" else path.parent)
+    if t.has("jar_material"):  # the jar's shape in another material
+        wall = material_data(t.get("jar_material", kind=str), t.where("jar_material"), "jar_material")
+        jar = dataclasses.replace(jar, wall_material=wall.name)
+    else:
+        wall = material_data(jar.wall_material, jar.source, "wall_material")
     bt = t.table("balls", known=BALLS_KEYS)
-    material = load_material(bt.get("material", kind=str), source)
-    radius = bt.get("radius_mm", lo=0, lo_open=True, hi=0.5e3 * min(jar.radius, jar.height)) * 1e-3
+    ball = material_data(bt.get("material", kind=str), bt.where("material"), "balls.material")
+    size_key = _size_key(bt)
+    size = bt.get(size_key, lo=0, lo_open=True, hi=(0.5e3 if size_key == "radius_mm" else 1e3) * min(jar.radius, jar.height))
+    radius = (size if size_key == "radius_mm" else size / 2.0) * 1e-3
     count, count_key, notes = charge.ball_count(bt, jar, radius)
-    balls = Balls(count, material, radius)
+    balls = Balls(count, ball.material, radius)
     bt.done()
-    _check_fill(balls, jar, bt.where(count_key), bt.where("radius_mm"), placed=t.has("initial_positions"))
+    _check_fill(balls, jar, bt.where(count_key), bt.where(size_key), placed=t.has("initial_positions"), size_key=size_key)
+    warnings += ball.estimate_notes(("density_kg_m3", "youngs_modulus_gpa", "poisson"), "ball material")
+    warnings += wall.estimate_notes(("youngs_modulus_gpa", "poisson"), "wall material")
     pt = t.table("powder", required=False, known=POWDER_KEYS)
     powder = None
     if pt is not None:
@@ -149,16 +160,17 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     pair = t.get("pair", kind=str)
     pair_base = Path.cwd() if t.where("pair") == "command line" else path.parent
     friction, contact = load_friction(pair, t.where("pair"), base=pair_base)
+    warnings += pair_estimates(pair)
     if pair.endswith(".toml"):  # a pair file: its resolved path, valid from any directory
         pair = str((pair_base / pair).resolve())
     ft = t.table("friction", required=False, known=FRICTION_KEYS)
     if ft is not None:  # the pair's friction, tuned by the user
         friction = read_friction(ft, f"{pair} (tuned)", friction)
         ft.done()
-    frictions = [_kind_friction(t, kind, friction, contact, path, pair_base) for kind in KINDS]
+    frictions = [_kind_friction(t, kind, friction, contact, path, pair_base, warnings) for kind in KINDS]
     friction, wall_friction = frictions[0], (frictions[1] if frictions[1] != frictions[0] else None)
     law = t.get("law", None, allowed=LAW_NAMES)
-    ball_ball, ball_wall = contact_laws(contact, law, balls, jar, source)
+    ball_ball, ball_wall = contact_laws(contact, law, balls, jar, source, notes=warnings)
 
     r = mill.plate_range
     plate_rpm = t.get("plate_rpm", **(r.bounds if mill.plate_rpm_max is None else {}))
@@ -221,7 +233,11 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     if t.has("initial_positions"):
         init = load_positions(t.get("initial_positions", kind=str), path.parent, balls, jar, source)
     t.done()
-    measured = contact_table(contact)[0].get("ball_radius_mm")
+    measured = None  # the ball size the contact set in use was measured for (a derived set: the balls' own)
+    if contact is not None:
+        table = contact_table(contact)[0]
+        if rules.measured_set_applies(table.get("ball"), table.get("wall"), balls, jar):
+            measured = table.get("ball_radius_mm")
     checks = (rules.ball_size_note(balls.radius, measured * 1e-3 if isinstance(measured, (int, float)) else None, contact),
               rules.start_up_note(analysis_start, duration, ramp_time))
     warnings += [*notes, *(n for n in checks if n)]
@@ -244,7 +260,15 @@ def _jar_name(t: Table, mill: Mill, warnings: list) -> str:
     return str(path)
 
 
-def _kind_friction(t: Table, kind: str, friction: Friction, contact: str, path: Path, pair_base: Path) -> Friction:
+def _size_key(bt: Table) -> str:
+    """"radius_mm" or "diameter_mm": the balls' size is given by exactly one."""
+    rules.one_ball_size(bt.where("diameter_mm"), bt.data.get("radius_mm"), bt.data.get("diameter_mm"))
+    bt.used.update(("radius_mm", "diameter_mm"))
+    return "diameter_mm" if bt.has("diameter_mm") else "radius_mm"
+
+
+def _kind_friction(t: Table, kind: str, friction: Friction, contact: str | None, path: Path, pair_base: Path,
+                   warnings: list) -> Friction:
     """Friction of one contact kind: `pair_KIND` (a pair of the same contact set)
     instead of `pair`, then tuned by `[friction_KIND]`; else the preset's friction."""
     key = f"pair_{kind}"
@@ -252,6 +276,7 @@ def _kind_friction(t: Table, kind: str, friction: Friction, contact: str, path: 
         name = t.get(key, kind=str)
         base = Path.cwd() if t.where(key) == "command line" else pair_base
         friction, own = load_friction(name, t.where(key), key, base)
+        warnings += pair_estimates(name)
         rules.same_contact_set(t.where(key), key, name, own, contact, "`pair` uses",
                                " (the normal laws come from `pair`; pick a pair of the same contact set)")
     ft = t.table(f"friction_{kind}", required=False, known=FRICTION_KEYS)
@@ -261,7 +286,7 @@ def _kind_friction(t: Table, kind: str, friction: Friction, contact: str, path: 
     return friction
 
 
-def _check_fill(balls: Balls, jar: Jar, source, radius_source, placed=False):
+def _check_fill(balls: Balls, jar: Jar, source, radius_source, placed=False, size_key="radius_mm"):
     """Random loose packing reaches ~0.55; refuse fills that cannot be placed at random
     (given positions are checked ball by ball instead: a settled bed is denser). A ball
     larger than the fillets would touch both walls of a corner while the side-wall
@@ -270,8 +295,10 @@ def _check_fill(balls: Balls, jar: Jar, source, radius_source, placed=False):
     if fill > charge.MAX_RANDOM_FILL and not placed:
         raise ConfigError(source, "balls.count", balls.count,
                           f"balls fill {fill:.0%} of the jar; at most {charge.MAX_RANDOM_FILL:.0%} can be placed at random")
+    scale = 2.0 if size_key == "diameter_mm" else 1.0  # the size as it was given
     if 2 * balls.radius >= jar.height or balls.radius >= jar.radius:
-        raise ConfigError(radius_source, "balls.radius_mm", balls.radius * 1e3, "balls must fit in the jar")
+        raise ConfigError(radius_source, f"balls.{size_key}", scale * balls.radius * 1e3, "balls must fit in the jar")
     if len(jar.profile.pieces) > 1 and balls.radius > jar.fillet:
-        raise ConfigError(radius_source, "balls.radius_mm", balls.radius * 1e3,
-                          f"allowed range (0, {jar.fillet * 1e3:g}]: jar {jar.name}'s corners are rounded to {jar.fillet * 1e3:g} mm")
+        raise ConfigError(radius_source, f"balls.{size_key}", scale * balls.radius * 1e3,
+                          f"allowed range (0, {scale * jar.fillet * 1e3:g}]: jar {jar.name}'s corners are rounded to "
+                          f"{jar.fillet * 1e3:g} mm")

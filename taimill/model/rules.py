@@ -45,6 +45,13 @@ def one_jar(source, jar, volume_ml):
         raise ConfigError(source, "jar_volume_ml", volume_ml, "give either jar or jar_volume_ml, not both")
 
 
+def one_ball_size(source, radius_mm, diameter_mm):
+    """The balls' size is given by `radius_mm` or by `diameter_mm` (mm), not both (None:
+    not given)."""
+    if radius_mm is not None and diameter_mm is not None:
+        raise ConfigError(source, "balls.diameter_mm", diameter_mm, f"give either radius_mm ({radius_mm!r}) or diameter_mm, not both")
+
+
 def jar_speed_fits(source, key: str, value, drive):
     """One limit on the jar's speed however it is given: ω = w − Ω (relative to the
     plate) within RANGES["jar_rpm"], also when the jar's speed came as K = `ratio`
@@ -108,21 +115,20 @@ def friction_order(source, key: str, mu_s: float, mu_d: float):
 
 
 # ------------------------------------------------------------------ contact sets
-def contact_set_fits(source, contact: str, ball_material: str, wall_material: str, balls, jar):
-    """A contact set is measured for one ball material on one wall material (its normal
-    laws hold for no other): the balls (`Balls`) and the jar's wall (`Jar`) must be those."""
-    if ball_material != balls.material.name:
-        raise ConfigError(source, "balls.material", balls.material.name, f"the pair's contact set '{contact}' is for {ball_material} balls")
-    if wall_material != jar.wall_material:
-        raise ConfigError(source, "jar", jar.name, f"wall material {jar.wall_material}; the pair's contact set '{contact}' is for {wall_material} walls")
+def measured_set_applies(ball_material: str, wall_material: str, balls, jar) -> bool:
+    """A contact set is measured for one ball material on one wall material: it holds
+    for these balls (`Balls`) and the jar's wall (`Jar`) when they are those; otherwise
+    the contact set is derived from the materials (taimill.model.contact_sets)."""
+    return ball_material == balls.material.name and wall_material == jar.wall_material
 
 
 def same_contact_set(source, key: str, pair: str, contact: str, in_use: str, uses: str, why: str = ""):
     """A further pair (a preset's pair_KIND, a pair chosen while the mill runs) changes
     friction only: the normal laws stay those of the contact set in use, so the pair's
     contact set `contact` must be it. uses, why: how the message names the set in use
-    and why it must be kept."""
-    if contact != in_use:
+    and why it must be kept. A pair without a measured set (contact None) changes friction
+    only wherever it is used."""
+    if contact is not None and contact != in_use:
         raise ConfigError(source, key, pair, f"is for the '{contact}' contact set; {uses} '{in_use}'{why}")
 
 

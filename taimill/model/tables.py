@@ -89,10 +89,32 @@ class Table:
             raise ConfigError(self.where(k), self.key(k), v, "must be a table")
         return Table(v, self.source, f"{self.prefix}{k}.", self.overridden, known)
 
+    def sources(self, numbers, required=True) -> dict:
+        """{key: source text} from the `source` sub-table: one non-empty text for each of
+        `numbers` this table gives, no other keys. A text starting with "estimate" marks
+        a number no source was found for (`is_estimate`)."""
+        st = self.table("source", required=required, known=[k for k in numbers if k in self.data])
+        if st is None:
+            return {}
+        out = {}
+        for k in numbers:
+            if k in self.data:
+                text = st.get(k, kind=str)
+                if not text.strip():
+                    raise ConfigError(st.source, st.key(k), text, "the number's source, or 'estimate: …' saying where it comes from")
+                out[k] = text.strip()
+        st.done()
+        return out
+
     def done(self):
         extra = sorted(set(self.data) - self.used, key=str)
         if extra:
             raise self.unknown(extra[0], self.used)
+
+
+def is_estimate(source_text: str) -> bool:
+    """Whether a number's source text (Table.sources) marks it as an estimate."""
+    return source_text.lower().startswith("estimate")
 
 
 def read_toml(path: Path, what: str, source=None) -> dict:

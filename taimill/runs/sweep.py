@@ -29,14 +29,20 @@ from taimill.store.sweep import SweepStore, scalars
 # Swept preset keys, outermost first (ratio innermost: a chunk holds neighbouring K).
 # "friction.mu" is one Coulomb coefficient, μ_s = μ_d, of the preset's pair (both contact
 # kinds unless pair_ball_wall is given); "friction.mu_r" its rolling resistance.
-AXES = ("mill", "jar", "balls.count", "pair", "pair_ball_wall", "friction.mu", "friction.mu_r", "plate_rpm", "ratio")
+AXES = ("mill", "jar", "jar_volume_ml", "jar_material", "balls.material", "balls.diameter_mm", "balls.count", "pair",
+        "pair_ball_wall", "friction.mu", "friction.mu_r", "plate_rpm", "ratio")
 # the table column of each outer axis (refinement finds a combination's curve by them)
-AXIS_COLUMNS = {"mill": "mill", "jar": "jar", "balls.count": "balls", "pair": "pair_name", "pair_ball_wall": "pair_ball_wall",
+AXIS_COLUMNS = {"mill": "mill", "jar": "jar", "jar_material": "jar_material", "balls.material": "ball_material",
+                "balls.diameter_mm": "ball_diameter_mm", "balls.count": "balls", "pair": "pair_name", "pair_ball_wall": "pair_ball_wall",
                 "friction.mu": "mu", "friction.mu_r": "mu_r", "plate_rpm": "plate_rpm"}
 MAX_POINTS = 10_000
+MEDIA_AXES = ("jar_material", "balls.material", "balls.diameter_mm")
 # The flattened keys of a resolved configuration each swept file sets: a change to that
 # file is named by them (content).
-FILE_AXES = {"mill": ("mill",), "jar": ("jar",), "pair": ("pair", "friction", "ball_ball", "ball_wall"), "pair_ball_wall": ("wall_friction",)}
+FILE_AXES = {"mill": ("mill",), "jar": ("jar",), "jar_volume_ml": ("jar",), "pair": ("pair", "friction", "ball_ball", "ball_wall"),
+             "pair_ball_wall": ("wall_friction",), "balls.material": ("balls", "ball_ball", "ball_wall"),
+             "jar_material": ("jar", "ball_wall")}
+AXIS_OPTIONS = {"balls.material": "--ball-material", "balls.diameter_mm": "--ball-diameter", "jar_volume_ml": "--jar-volume"}  # else --KEY
 MAX_AUTO_BATCH = 16
 
 
@@ -149,6 +155,8 @@ def plan(req: Request, ratios_for=None) -> list[dict]:
             p = load_preset(req.preset, ov)
             # a jar or mill as given: the built-in CY and a user's CY.toml share a name, not a curve
             label = {k: fixed[k] for k in ("mill", "jar") if k in fixed}
+            if any(k in req.axes for k in MEDIA_AXES):  # the pair label tells the media's curves apart
+                label["pair"] = f"{friction_label(p)}, {media_label(p)}"
             points.append({"overrides": ov, "values": point_values(p, r) | label, "preset": p})
     return points
 
@@ -180,7 +188,7 @@ def content(req: Request, points: list[dict]) -> dict:
         config = flat(plain(p["preset"].as_dict()))
         digest.update(json.dumps(config, sort_keys=True).encode())
         for key, names in FILE_AXES.items():
-            label = f"--{key.replace('_', '-')} {p['overrides'].get(key)}"
+            label = f"{AXIS_OPTIONS.get(key, '--' + key.replace('_', '-'))} {p['overrides'].get(key)}"
             if key in req.axes and label not in parts:
                 parts[label] = {k: x for k, x in config.items() if k.split(".")[0] in names}
     return {"sha256": digest.hexdigest(), "parts": parts}
@@ -195,7 +203,13 @@ def point_values(p, replica: int) -> dict:
             "ball_mass": p.balls.mass,
             "jar_radius": p.jar.radius, "ball_radius": p.balls.radius, "duration": p.duration,
             "mu": bb.mu_s, "mu_d": bb.mu_d, "mu_r": bb.mu_r, "mu_wall": bw.mu_s, "mu_d_wall": bw.mu_d, "mu_r_wall": bw.mu_r,
-            "pair_name": p.pair, "pair_ball_wall": bw.name}
+            "pair_name": p.pair, "pair_ball_wall": bw.name, "jar_material": p.jar.wall_material,
+            "ball_material": p.balls.material.name, "ball_diameter_mm": round(2e3 * p.balls.radius, 9)}
+
+
+def media_label(p) -> str:
+    """The balls and the wall: "zirconia balls Ø12 mm, aisi-304 wall"."""
+    return f"{p.balls.material.name} balls Ø{round(2e3 * p.balls.radius, 9):g} mm, {p.jar.wall_material} wall"
 
 
 def friction_label(p) -> str:

@@ -285,7 +285,8 @@ class MillApp(App):
             self._set_jar()
 
         self._apply(change, lambda: f"restarted at t = 0: {m.preset.jar.name} jar, {m.n_balls} balls"
-                    + (f"; recordings closed: {', '.join(map(str, closed))}" if closed else ""))
+                    + (f"; recordings closed: {', '.join(map(str, closed))}" if closed else "")
+                    + "".join(f"; {w}" for w in m.preset.warnings if w.startswith("contact set derived")))
         self._show_now()
 
     # ------------------------------------------------------------------ keys

@@ -42,11 +42,12 @@ FIELDS = {
 
 
 def pairs_for(contact_of_pair: str) -> list[str]:
-    """Friction pairs sharing the contact set of the given pair (materials.toml)."""
+    """Friction pairs sharing the contact set of the given pair (materials.toml), and the
+    pairs without a measured set, which change friction only (rules.same_contact_set)."""
     with open(MATERIALS_FILE, "rb") as f:
         pairs = tomllib.load(f)["pair"]
-    contact = pairs[contact_of_pair]["contact"]
-    return [name for name, p in pairs.items() if p["contact"] == contact]
+    contact = pairs[contact_of_pair].get("contact")
+    return [name for name, p in pairs.items() if p.get("contact") in (contact, None)]
 
 
 def shown(key: str, value) -> str:

@@ -117,8 +117,6 @@ def cmd_sweep(a) -> int:
     req, run_kw = request(a)
     with reads() as inputs:
         points = plan(req)  # every point validated before a store is touched or a kernel runs
-    for w in dict.fromkeys(w for p in points for w in p["preset"].warnings):  # each once, not once per point
-        print(f"taimill: warning: {w}", file=sys.stderr)
     if a.out:  # its folder must exist and be writable (an existing store: the store's own rules)
         check_output(a.out, "--out", overwrite=None)
     if a.map:

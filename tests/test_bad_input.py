@@ -201,7 +201,7 @@ VALUES = [
     # mills: unknown, a fixed gear with a jar speed, a plate speed beyond the mill's, a bowl it does not take
     ("mills: unknown name", ["mills", "no-such-mill"], ["mill", "no-such-mill", "known mills", "retsch-pm100"]),
     ("run --mill unknown", RUN + ["--mill", "no-such-mill"], ["mill", "no-such-mill", "known mills"]),
-    ("run --mill fixed gear with the preset's ratio", RUN + ["--mill", "retsch-pm100"],
+    ("run --mill fixed gear with --ratio", RUN + ["--mill", "retsch-pm100", "--ratio", "-2"],
      ["ratio", "retsch-pm100 has a fixed gear 1:-2 (K = -1)", "cannot be set"]),
     ("run --jar-volume the mill lacks", RUN + ["--jar-volume", "33"], ["jar_volume_ml", "33", "fritsch-p4", "80, 250, 500 ml"]),
     ("run --jar-rpm with --ratio", RUN + ["--jar-rpm", "-700", "--ratio", "-2.6"], ["--jar-rpm", "not both"]),
@@ -253,7 +253,7 @@ VALUES = [
     ("sweep --map not png", SWEEP + ["--ratio", "-2", "--map", "{work}/map.txt"], ["--map", ".png"]),
     ("sweep --map missing folder", SWEEP + ["--ratio", "-2", "--map", "{work}/nope/map.png"], ["--map", "does not exist"]),
     ("sweep --map existing", SWEEP + ["--ratio", "-2", "--map", "{work}/existing.png"], ["--map", "--overwrite"]),
-    ("run without PRESET", ["run"], ["required", "preset"]),
+    ("run without PRESET, a bad option", ["run", "--balls", "0"], ["balls.count", "0"]),
     ("run PRESET empty", ["run", ""], ["preset", "empty"]),
     ("run PRESET NUL", ["run", "a\0b.toml"], ["preset", "NUL"]),
     ("run --out empty", ["run", PRESET, "--out", ""], ["--out", "empty"]),

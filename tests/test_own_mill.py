@@ -61,3 +61,11 @@ def test_a_fixed_gear_refuses_k_and_the_limits_are_the_mills(tmp_path):
     res = taimill("sweep", "--mill", "fritsch-p7-classic", *classic, "--plate-rpm", "700,1100", "--duration", 0.1,
                   cwd=tmp_path)
     assert res.returncode == 2 and "800" in res.stderr and "rpm" in res.stderr and "fritsch-p7-classic" in res.stderr
+
+
+def test_the_plate_radius_is_a_sweep_axis_in_mm(tmp_path):
+    res = taimill("sweep", "p4-cy-steel", "--plate-radius", "70,125", "--duration", 0.1, "--workers", 1, "--json",
+                  cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    rows = json.loads(res.stdout)
+    assert [(r["plate_radius_mm"], r["plate_radius"]) for r in rows] == [(70, pytest.approx(0.07)), (125, pytest.approx(0.125))]

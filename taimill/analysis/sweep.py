@@ -42,6 +42,7 @@ AXIS_LABELS = {
     "mu_r_wall": ("μ_r wall", "", 1, "ball-wall rolling resistance μ_r"),
     "mu_d": ("μ_d", "", 1, "dynamic friction μ_d"),
     "mu_d_wall": ("μ_d wall", "", 1, "ball-wall dynamic friction μ_d"),
+    "plate_radius_mm": ("R_p", "mm", 1, "plate radius R_p (mm)"),
     "plate_radius": ("R_p", "mm", 1e3, "plate radius R_p (mm)"),
     "jar_radius": ("R", "mm", 1e3, "jar radius R (mm)"),
     "ball_mass": ("m", "g", 1e3, "ball mass m (g)"),

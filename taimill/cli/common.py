@@ -103,6 +103,7 @@ def overrides(a) -> dict:
         "powder.mass_g": a.powder_mass, "seed": a.seed, "duration": getattr(a, "duration", None), "dt": dt,
         "law": a.law, "analysis_start": getattr(a, "analysis_start", None),
         "balls.material": a.ball_material, "balls.diameter_mm": a.ball_diameter, "jar_material": a.jar_material,
+        "plate_radius_mm": a.plate_radius,
     }
     return {k: v for k, v in given.items() if k not in LIVE_IGNORED or hasattr(a, k)}
 
@@ -118,6 +119,8 @@ def add_overrides(p, live: bool = False):
                    help="a bundled jar or bowl by name (`taimill jars`), or a jar file NAME.toml (from the current folder)")
     g.add_argument("--mill", type=name_text, help="planetary mill: a name (`taimill mills`) or a mill file NAME.toml (default: the preset's, else fritsch-p4)")
     g.add_argument("--jar-volume", type=integer, metavar="ML", help="the mill's bowl of this volume (ml) instead of --jar")
+    g.add_argument("--plate-radius", type=number, metavar="MM",
+                   help="R_p, plate axis to jar axis (mm) instead of the mill's (a mill of your own: better a mill file)")
     g.add_argument("--balls", type=integer, help="number of balls; or give --filling, not both")
     g.add_argument("--filling", type=number,
                    help="ball filling degree: the ball bed's bulk volume / the jar's (about 1/3 is usual); sets the ball count")

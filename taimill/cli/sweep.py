@@ -43,6 +43,7 @@ def register(subparsers) -> None:
     g.add_argument("--jar", help="jars, e.g. CY,HM")
     g.add_argument("--mill", help="planetary mills (names or mill files), e.g. retsch-pm100,fritsch-p7-premium")
     g.add_argument("--jar-volume", help="the mill's bowls by volume (ml), e.g. 50,80,125")
+    g.add_argument("--plate-radius", help="plate radii R_p (mm) instead of the mill's, e.g. 70,125")
     g.add_argument("--jar-material", help="jar wall materials, e.g. aisi-304,zirconia (taimill materials)")
     g.add_argument("--ball-material", help="ball materials, e.g. steel-c1020,zirconia")
     g.add_argument("--ball-diameter", help="ball diameters (mm), e.g. 6,12")
@@ -78,7 +79,8 @@ def request(a):
     axes = {}
     for key, opt, kind in (("ratio", "--ratio", float), ("plate_rpm", "--plate-rpm", float), ("pair", "--pair", str),
                            ("balls.count", "--balls", int), ("jar", "--jar", str), ("mill", "--mill", str),
-                           ("jar_volume_ml", "--jar-volume", int), ("pair_ball_wall", "--pair-ball-wall", str),
+                           ("jar_volume_ml", "--jar-volume", int),
+                           ("plate_radius_mm", "--plate-radius", float), ("pair_ball_wall", "--pair-ball-wall", str),
                            ("friction.mu", "--mu", float), ("friction.mu_r", "--mu-r", float),
                            ("jar_material", "--jar-material", str), ("balls.material", "--ball-material", str),
                            ("balls.diameter_mm", "--ball-diameter", float)):

@@ -29,10 +29,10 @@ from taimill.store.sweep import SweepStore, scalars
 # Swept preset keys, outermost first (ratio innermost: a chunk holds neighbouring K).
 # "friction.mu" is one Coulomb coefficient, μ_s = μ_d, of the preset's pair (both contact
 # kinds unless pair_ball_wall is given); "friction.mu_r" its rolling resistance.
-AXES = ("mill", "jar", "jar_volume_ml", "jar_material", "balls.material", "balls.diameter_mm", "balls.count", "pair",
+AXES = ("mill", "plate_radius_mm", "jar", "jar_volume_ml", "jar_material", "balls.material", "balls.diameter_mm", "balls.count", "pair",
         "pair_ball_wall", "friction.mu", "friction.mu_r", "plate_rpm", "ratio")
 # the table column of each outer axis (refinement finds a combination's curve by them)
-AXIS_COLUMNS = {"mill": "mill", "jar": "jar", "jar_material": "jar_material", "balls.material": "ball_material",
+AXIS_COLUMNS = {"mill": "mill", "plate_radius_mm": "plate_radius_mm", "jar": "jar", "jar_material": "jar_material", "balls.material": "ball_material",
                 "balls.diameter_mm": "ball_diameter_mm", "balls.count": "balls", "pair": "pair_name", "pair_ball_wall": "pair_ball_wall",
                 "friction.mu": "mu", "friction.mu_r": "mu_r", "plate_rpm": "plate_rpm"}
 MAX_POINTS = 10_000
@@ -42,7 +42,8 @@ MEDIA_AXES = ("jar_material", "balls.material", "balls.diameter_mm")
 FILE_AXES = {"mill": ("mill",), "jar": ("jar",), "jar_volume_ml": ("jar",), "pair": ("pair", "friction", "ball_ball", "ball_wall"),
              "pair_ball_wall": ("wall_friction",), "balls.material": ("balls", "ball_ball", "ball_wall"),
              "jar_material": ("jar", "ball_wall")}
-AXIS_OPTIONS = {"balls.material": "--ball-material", "balls.diameter_mm": "--ball-diameter", "jar_volume_ml": "--jar-volume"}  # else --KEY
+AXIS_OPTIONS = {"balls.material": "--ball-material", "balls.diameter_mm": "--ball-diameter", "jar_volume_ml": "--jar-volume",
+                "plate_radius_mm": "--plate-radius"}  # else --KEY
 MAX_AUTO_BATCH = 16
 
 
@@ -204,7 +205,8 @@ def point_values(p, replica: int) -> dict:
             "jar_radius": p.jar.radius, "ball_radius": p.balls.radius, "duration": p.duration,
             "mu": bb.mu_s, "mu_d": bb.mu_d, "mu_r": bb.mu_r, "mu_wall": bw.mu_s, "mu_d_wall": bw.mu_d, "mu_r_wall": bw.mu_r,
             "pair_name": p.pair, "pair_ball_wall": bw.name, "jar_material": p.jar.wall_material,
-            "ball_material": p.balls.material.name, "ball_diameter_mm": round(2e3 * p.balls.radius, 9)}
+            "ball_material": p.balls.material.name, "ball_diameter_mm": round(2e3 * p.balls.radius, 9),
+            "plate_radius_mm": round(1e3 * p.plate_radius, 9)}
 
 
 def media_label(p) -> str:

@@ -160,7 +160,7 @@ SUMMARY_UNITS: dict[str, str] = {
     # taimill sweep rows: the point and its swept values
     "point": "1", "balls": "1", "seed": "1", "replica": "1", "batch": "1", "duration": "s",
     "plate_radius": "m", "jar_radius": "m", "ball_radius": "m", "regime_fractions": "1", "replicas": "1",
-    "mu": "1", "mu_wall": "1", "mu_d_wall": "1", "mu_r_wall": "1", "ball_mass": "kg", "ball_diameter_mm": "mm",
+    "mu": "1", "mu_wall": "1", "mu_d_wall": "1", "mu_r_wall": "1", "ball_mass": "kg", "ball_diameter_mm": "mm", "plate_radius_mm": "mm",
     **{f"dissipated_power_{k}_{c}_{p}": "W" for k in MECHANISM_KINDS for c in MECHANISM_CLASSES for p in MECHANISM_PARTS},
     "slip_ratio": "1",  # taimill.analysis.regime.slip_ratio (regime maps)
 }

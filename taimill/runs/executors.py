@@ -157,9 +157,11 @@ def run_local(chunks: list[list[Job]], workers: int, keep_streams: bool, on_prog
     try:
         futures = {pool.submit(run_chunk, cid, chunk, keep_streams): cid for cid, chunk in enumerate(chunks)}
         pending = set(futures)
+        workers_seen: dict = {}  # every worker process ever seen: a broken pool may have dropped the dead one already
         while pending:
+            workers_seen |= dict(getattr(pool, "_processes", None) or {})
             done, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
-            workers_seen = dict(getattr(pool, "_processes", None) or {})
+            workers_seen |= dict(getattr(pool, "_processes", None) or {})
             _drain(progress_queue, on_progress, running)
             broken = [f for f in done if isinstance(f.exception(), BrokenProcessPool)]
             if broken:  # every future left fails at once: take those that finished first

@@ -814,6 +814,7 @@ def dense_case(directory: Path, n: int, drum: bool) -> Path:
                                    f'[[profile]]\ntype = "circle"\nradius_mm = {1e3 * R!r}\n')
     np.savez(case / "start.npz", positions=x)
     drive = f"plate_rpm = 1e-6\njar_rpm = {DRUM_RPM}\nramp_time = 0.001\n" if drum else "plate_rpm = 1e-6\nratio = 1\n"
+    drive += "plate_radius_mm = 2000\n"  # the plate all but rests (Ω = 1e-6 rpm): R_p need only lie outside the jar
     duration = (2 * DENSE_STEPS[n] + DENSE_SETTLE.get(n, 0)) * 1e-6 + 2e-6
     (case / "bed.toml").write_text(
         'jar = "jar.toml"\npair = "steel-steel"\nlaw = "hertz-mindlin"\n' + drive

@@ -21,8 +21,6 @@ from taimill.model.provenance import Origin, read_origins
 from taimill.model.ranges import RANGES, Range
 from taimill.model.tables import Table, read_toml
 
-MILLS_DIR = files.PACKAGE / "data" / "mills"
-BOWLS_DIR = files.PACKAGE / "data" / "bowls"
 DEFAULT = "fritsch-p4"  #: the thesis' mill, the mill of every preset that names none
 GEARS = ("fixed", "set", "free")
 NUMBERS = ("plate_radius_mm", "gear_ratio", "gear_ratios", "ratio_min", "ratio_max",
@@ -143,25 +141,20 @@ class Mill:
 
 
 def mill_names() -> list[str]:
-    return sorted(p.stem for p in MILLS_DIR.glob("*.toml"))
-
-
-def resolve_mill_path(name: str, base: Path | None = None) -> Path:
-    """A mill file (NAME.toml, relative to `base`) or a built-in mill's name."""
-    p = Path(name)
-    if p.suffix == ".toml":
-        return p if p.is_absolute() or base is None else base / p
-    return MILLS_DIR / f"{name}.toml"
+    """The bundled mills, by name."""
+    return files.bundled_names("mill")
 
 
 def load_mill(name_or_path: str = DEFAULT, source="preset", base: Path | None = None) -> Mill:
     """A mill by name (taimill/data/mills/NAME.toml) or from a mill file (.toml, relative
     to base: the current folder for the command line, the preset's folder for a preset)."""
     files.check_path_text(name_or_path, source, "mill", "a mill name or mill file")
-    path = resolve_mill_path(name_or_path, base)
+    path = files.resolve(name_or_path, "mill", False, base, source=source, key="mill")
     if files.missing(path):
         raise ConfigError(source, "mill", name_or_path, f"no mill file {path}; known mills: {', '.join(mill_names())}")
-    t = Table(read_toml(path, "mill", source), path, known=MILL_KEYS)
+    data = read_toml(path, "mill", source)
+    files.check_kind(data, "mill", name_or_path, source, "mill")
+    t = Table(data, path, known=MILL_KEYS)
     maker, model = t.get("maker", kind=str), t.get("model", kind=str)
     desc = t.get("description", "", kind=str)
     radius = t.get("plate_radius_mm", lo=30, hi=400) * 1e-3
@@ -227,4 +220,4 @@ def bowl_path(mill: Mill, volume_ml, source="command line", key="jar_volume_ml")
     if not ok:
         allowed = ", ".join(f"{v:d}" for v in mill.bowls_ml) or "none listed"
         raise ConfigError(source, key, volume_ml, f"mill {mill.name} takes bowls of {allowed} ml")
-    return BOWLS_DIR / f"{mill.maker.lower()}-{int(volume_ml)}ml.toml"
+    return files.BUNDLED["jar"][-1] / f"{mill.maker.lower()}-{int(volume_ml)}ml.toml"  # the bowls folder

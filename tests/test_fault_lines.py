@@ -205,6 +205,29 @@ def test_the_line_of_a_dead_worker_names_how_it_died_and_the_points():
         "sweep: a worker died (dask KilledWorker) while it ran point 1 (ratio -3.0, seed 0); nothing is stored (no --out)")
 
 
+
+def test_a_worker_reaped_by_the_pool_thread_first_is_still_named_dead():
+    """The pool's own thread and ours wait for the same dead worker: the wait that loses
+    the race reads no exit code until the winner has stored it (seen in CI: the line said
+    "a worker process died" without naming the killed worker). The code is asked again."""
+    from taimill.runs.executors import _broken
+
+    class Reaped:  # exitcode None twice (the lost race), then the code the pool thread stored
+        def __init__(self, codes):
+            self.codes = list(codes)
+
+        def join(self, timeout=None):
+            pass
+
+        @property
+        def exitcode(self):
+            return self.codes.pop(0) if len(self.codes) > 1 else self.codes[0]
+
+    broken = _broken({12: Reaped([None, None, -signal.SIGKILL]), 13: Reaped([-signal.SIGTERM])}, {0: 12, 1: 13},
+                     [[type("J", (), {"index": 0})()], [type("J", (), {"index": 1})()]])
+    assert broken.dead == [(12, "killed by SIGKILL (out of memory?)")] and broken.lost == {12: [0], 13: [1]}
+
+
 # ---------------------------------------------------------------- the TUI
 def test_an_error_inside_the_tui_is_one_line_and_not_exit_0(tmp_path, monkeypatch):
     from textual.app import App

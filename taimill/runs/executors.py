@@ -197,9 +197,9 @@ def _broken(processes: dict, running: dict[int, int], chunks) -> PoolBroken:
     """What a broken pool lost: its workers that died by themselves (the pool then
     ends the others with SIGTERM) and the chunks running at the time."""
     dead = []
+    deadline = time.monotonic() + 5
     for pid, process in processes.items():
-        process.join(timeout=5)
-        code = process.exitcode
+        code = _exit_code(process, deadline)
         if code not in (None, 0, -signal.SIGTERM):
             how = f"killed by {_signal_name(-code)}" if code < 0 else f"exit code {code}"
             how += " (out of memory?)" if code == -signal.SIGKILL else ""  # what the kernel's OOM killer sends
@@ -209,6 +209,17 @@ def _broken(processes: dict, running: dict[int, int], chunks) -> PoolBroken:
         if pid is not None:
             lost.setdefault(pid, []).extend(j.index for j in chunks[cid])
     return PoolBroken(dead, lost)
+
+
+def _exit_code(process, deadline: float) -> int | None:
+    """The worker's exit code, waiting until `deadline` for it. The pool's own thread
+    reaps its workers at the same time: a wait that loses that race reads no code
+    (None) before the winner has stored it, so ask again until it is there."""
+    while True:
+        process.join(timeout=max(0.0, min(0.1, deadline - time.monotonic())))
+        code = process.exitcode
+        if code is not None or time.monotonic() >= deadline:
+            return code
 
 
 def _signal_name(number: int) -> str:

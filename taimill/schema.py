@@ -163,6 +163,11 @@ SUMMARY_UNITS: dict[str, str] = {
     "mu": "1", "mu_wall": "1", "mu_d_wall": "1", "mu_r_wall": "1", "ball_mass": "kg", "ball_diameter_mm": "mm", "plate_radius_mm": "mm",
     **{f"dissipated_power_{k}_{c}_{p}": "W" for k in MECHANISM_KINDS for c in MECHANISM_CLASSES for p in MECHANISM_PARTS},
     "slip_ratio": "1",  # taimill.analysis.regime.slip_ratio (regime maps)
+    # the energy spectra's summary (taimill.analysis.spectra.summary; rate_above: events/s
+    # at or above each energy, keyed by the energy in J) and their sweep columns
+    "window": "s", "stress_un": "m/s", "energy": "J", "mean": "J", "median": "J", "p90": "J", "rate_above": "1/s",
+    **{f"spectrum_{m}_{stat}": "J" for m in ("dissipated_normal", "dissipated_friction", "se_normal", "se_tangential")
+       for stat in ("mean", "median", "p90")},
 }
 
 

@@ -7,6 +7,8 @@ Layout of one run group (docs/outputs.md):
     trajectory/  time (F,) s; position, velocity, spin (F, N, 3) m, m/s, rad/s
     events/      one 1-D array per `EVENT_COLUMNS` entry
     energy/      one 1-D array per `ENERGY_COLUMNS` entry
+    spectra/     the events' energy spectra over the analysis window (store/spectra.py),
+                 written when the run ends
     journal/     while the writer runs: NNNNNNNN.npz, the rows committed since the last
                  whole chunk of each table
 
@@ -68,6 +70,9 @@ from zarr.core.sync import sync
 from zarr.storage import LocalStore
 
 from taimill.errors import StoreError, StoreWriteError
+from taimill.model.mechanisms import STRESS_MIN_UN
+from taimill.model.spectra import from_rows
+from taimill.store.spectra import GROUP as SPECTRA, read_spectra, write_spectra
 from taimill.schema import (DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_COLUMNS, MECHANISM_COLUMNS, PER_BALL,
                             VELOCITY_CONVENTION)
 
@@ -453,6 +458,7 @@ class ZarrSink:
         self.journaled: dict[str, int] = {}  #: rows of each table that are in the arrays or the journal
         self.segments: list[tuple[str, dict[str, int]]] = []  #: journal keys and their end row per table
         self.seq = 0
+        self.last_spectra = None
 
     @contextmanager
     def _writing(self, part: str):
@@ -566,6 +572,10 @@ class ZarrSink:
             self.seq, self.segments = 0, []
         self.journaled = {name: t.committed for name, t in self.tables.items()}
 
+    def spectra(self, spectra) -> None:
+        """The run's energy spectra so far (taimill.model.spectra), written at finish."""
+        self.last_spectra = spectra
+
     def finish(self, summary: dict, status: str) -> None:
         """Flush, then record `summary`, `status` ("complete", "unstable: …", …) and
         the summary's `analysis_window` ([start, end], s) as the store's own. After a
@@ -573,6 +583,9 @@ class ZarrSink:
         if self.failed is None:
             try:
                 self.flush()
+                if self.last_spectra is not None:
+                    with self._writing(SPECTRA):
+                        write_spectra(self.group, self.last_spectra, CODECS)
                 attrs = {"summary": plain(summary, "summary"), "status": status}
                 if "analysis_window" in summary:
                     attrs["analysis_window"] = plain(summary["analysis_window"], "analysis_window")
@@ -985,6 +998,22 @@ class RunStore:
         relative to the jar frame, see `conventions`); the jar frame's drive per frame:
         plate_angle, jar_angle (rad), plate_speed, jar_spin (rad/s)."""
         return self._table("trajectory")
+
+    @cached_property
+    def spectra(self):
+        """The run's energy spectra (taimill.model.spectra.Spectra): the stored group
+        (written when the run ends), else binned from the event rows over the analysis
+        window (a run killed before its end), else None."""
+        try:
+            stored = read_spectra(self.group)
+        except (KeyError, ValueError, TypeError) as err:
+            self._bad(SPECTRA, f"unreadable ({err})")
+        if stored is not None:
+            return stored
+        if "events" not in self.group:
+            return None
+        start = float((self.analysis_window or [(self.config or {}).get("analysis_start", 0.0)])[0])
+        return from_rows(self.events, start, math.inf, STRESS_MIN_UN)
 
     @cached_property
     def events(self) -> dict[str, np.ndarray]:

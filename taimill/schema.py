@@ -165,6 +165,7 @@ SUMMARY_UNITS: dict[str, str] = {
     "slip_ratio": "1",  # taimill.analysis.regime.slip_ratio (regime maps)
     # the energy spectra's summary (taimill.analysis.spectra.summary; rate_above: events/s
     # at or above each energy, keyed by the energy in J) and their sweep columns
+    "softening": "1",  # contact stiffness divided by it (a softened run)
     "window": "s", "stress_un": "m/s", "energy": "J", "mean": "J", "median": "J", "p90": "J", "rate_above": "1/s",
     **{f"spectrum_{m}_{stat}": "J" for m in ("dissipated_normal", "dissipated_friction", "se_normal", "se_tangential")
        for stat in ("mean", "median", "p90")},

@@ -7,6 +7,7 @@ wall they show what the kinematic stress energy hides (docs/outcome.md)."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -124,3 +125,45 @@ def test_a_bed_sliding_on_the_wall_dissipates_a_hundredth_of_its_kinematic_impac
     kin_cat, r_cat = ratio(cat.last_spectra)
     assert kin_bed == pytest.approx(14.6, rel=0.05)
     assert r_bed > 50 and r_cat < 10, (r_bed, r_cat)
+
+
+def test_statistics_mode_of_a_large_mill_stores_the_spectra_the_rows_would_give():
+    """10⁴ balls of 1 mm on a simple-cubic lattice, each pair overlapping by 1 µm: every
+    neighbour opens a contact at the first step and closes it as the lattice springs
+    apart. The kernel's spectra equal those binned from the rows, in both launch modes
+    (the parallel mode adds from both threads at once)."""
+    p = load_preset("p4-cy-steel", {"balls.count": 10_000, "balls.diameter_mm": 1.0, "duration": 1.0,
+                                    "analysis_start": 0.0})
+    assert p.events_output == "rows"  # 10⁴ balls: still rows by default (rules.EVENT_ROWS_UP_TO)
+    d = 2 * p.balls.radius * (1 - 1e-3)
+    grid = np.stack(np.meshgrid(*(np.arange(22),) * 3, indexing="ij"), -1).reshape(-1, 3)[:10_000]
+    x = (grid - [10.5, 10.5, 0]) * d + [0, 0, p.balls.radius]
+    spec = from_preset(p).replace(position=x, steps=400)
+    results = []
+    for mode in ("fused", "parallel"):
+        sink = MemorySink()
+        sink.start({}, spec.n, spec.radius)
+        Runner([spec], mode=mode).run([sink])
+        sp = sink.last_spectra
+        assert sp.count.sum() > 10_000 and sp == from_rows(sink.event_table, sp.start, sp.end, sp.stress_un)
+        results.append(sp)
+    assert results[0] == results[1]
+
+
+def test_outputs_events_chooses_rows_or_spectra_and_a_spectra_store_is_small(tmp_path):
+    preset = tmp_path / "cy.toml"
+    text = Path(load_preset("p4-cy-steel").source).read_text()
+    preset.write_text(text.replace("[outputs]", '[outputs]\nevents = "spectra"'))
+    rows, spectra = tmp_path / "rows.zarr", tmp_path / "spectra.zarr"
+    for source, out in (("p4-cy-steel", rows), (preset, spectra)):
+        code, _, err = main("run", source, "--duration", 1.5, "--analysis-start", 0.5, "--out", out)
+        assert code == 0, err
+    a, b = open_run(rows), open_run(spectra)
+    assert b.config["events_output"] == "spectra" and len(b.events["t_start"]) == 0 < len(a.events["t_start"])
+    assert a.spectra == b.spectra
+    keep = lambda s: {k: v for k, v in s.items() if k not in ("wall_seconds", "realtime_factor")}  # noqa: E731
+    assert keep(a.summary) == keep(b.summary)  # the summary sees every event in both modes
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace("[outputs]", '[outputs]\nevents = "some"'))
+    code, _, err = main("run", bad, "--duration", 1.0)
+    assert code == 2 and "outputs.events" in err and "rows, spectra" in err

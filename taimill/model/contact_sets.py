@@ -224,3 +224,21 @@ def pair_contact(pair: str, radius: float | None = None, law: str | None = None,
         raise ConfigError(source, "law", law, f"must be one of {', '.join(LAW_NAMES)}")
     bb, bw = contact_laws(contact_id, law, ball, jar, source, contact, notes)
     return ball, jar, bb, bw, friction
+
+
+def soften(law: NormalLaw, factor: float) -> NormalLaw:
+    """The law with its stiffness divided by `factor` (≥ 1; DEM practice to lengthen the
+    time step: a Hertz contact lasts factor^(2/5) longer), keeping its restitution at
+    u_ref: the full-damping overlap d grows as the impact's peak overlap does,
+    factor^(1/(n+1)), and the damping c is calibrated anew so that a simulated head-on
+    impact at u_ref rebounds as the stiff law's does (laws.calibrate_damping). Mindlin's
+    tangential stiffness kt is divided by the same factor, so the tangential spring
+    keeps its ratio to the normal one. factor 1: the law itself."""
+    if factor == 1.0:
+        return law
+    model = law.model
+    e = float(laws_np.simulate_impact(model, law.k, law.c, law.d, law.m_eff, law.u_ref)["e"][0])
+    k = law.k / factor
+    d = law.d * factor ** (1.0 / (law.n + 1.0))
+    c = laws_np.calibrate_damping(model, e, k, law.m_eff, law.u_ref, d)
+    return dataclasses.replace(law, k=k, c=c, d=d, e=e, kt=law.kt / factor)

@@ -21,6 +21,8 @@ def start_point(preset, spec, sink) -> tuple[SummarySink, FanOut]:
     """The summary sink of one mill and the stream feeding it and `sink`, started
     (shared by run() and sweeps so that a sweep point is the same run)."""
     sim_seconds = spec.steps * spec.dt
+    if preset.events_output == "spectra":
+        sink = SpectraOnly(sink)
     summary = SummarySink(min(preset.analysis_start, sim_seconds), sim_seconds, preset.jar.radius, preset.balls.radius)
     out = FanOut(summary, sink)
     out.start(preset.as_dict() | {"duration": sim_seconds}, spec.n, spec.radius)
@@ -32,7 +34,17 @@ def point_result(preset, spec, summary, runner, b, wall, status) -> dict:
     result = summary.result(runner.time(b), wall)
     result.update(dt=spec.dt, steps=int(runner.engine.F.state.step[b]), status=status,
                   ratio=preset.drive.ratio, plate_rpm=preset.drive.plate_rpm)
+    if preset.softening != 1.0:  # the run's contacts are not the measured ones: said with every result
+        result["softening"] = preset.softening
     return with_units(result)
+
+
+class SpectraOnly(Relay):
+    """The caller's sink of a run that keeps the events' spectra, not their rows
+    (outputs.events = "spectra"): the summary still sees every event."""
+
+    def events(self, block):
+        pass
 
 
 class WholeLaunches(Relay):

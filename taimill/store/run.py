@@ -8,7 +8,8 @@ Layout of one run group (docs/outputs.md):
     events/      one 1-D array per `EVENT_COLUMNS` entry
     energy/      one 1-D array per `ENERGY_COLUMNS` entry
     spectra/     the events' energy spectra over the analysis window (store/spectra.py),
-                 written when the run ends
+                 written when the run ends, and at every commit by a run that stores
+                 no event rows (config events_output = "spectra")
     journal/     while the writer runs: NNNNNNNN.npz, the rows committed since the last
                  whole chunk of each table
 
@@ -459,6 +460,7 @@ class ZarrSink:
         self.segments: list[tuple[str, dict[str, int]]] = []  #: journal keys and their end row per table
         self.seq = 0
         self.last_spectra = None
+        self.event_rows = 0  #: event rows received: none, and the spectra are committed with the tables
 
     @contextmanager
     def _writing(self, part: str):
@@ -513,6 +515,7 @@ class ZarrSink:
 
     def events(self, block: dict[str, np.ndarray]) -> None:
         """Append collision events, one array per `EVENT_COLUMNS` entry."""
+        self.event_rows += len(block["t_start"])
         self._add("events", block)
 
     def energy(self, block: dict[str, np.ndarray]) -> None:
@@ -528,6 +531,9 @@ class ZarrSink:
     def commit(self) -> None:
         """Make every row received so far durable at the cost of one file: the rows not
         yet in whole chunks of the arrays go to one journal segment (module doc)."""
+        if self.last_spectra is not None and self.event_rows == 0:  # a run storing spectra only
+            with self._writing(SPECTRA):
+                write_spectra(self.group, self.last_spectra, CODECS)
         starts = {name: max(self.journaled[name], t.committed) for name, t in self.tables.items()}
         tails = {name: t.tail(starts[name]) for name, t in self.tables.items()}
         ends = {name: starts[name] + len(next(iter(rows.values()))) for name, rows in tails.items()}
@@ -942,7 +948,8 @@ class RunStore:
         if s is None or not status.startswith(FLUSHED):
             return
         total = s.get("events_total")
-        if isinstance(total, int) and total != self.rows["events"]:
+        rows_kept = (self.config or {}).get("events_output", "rows") == "rows"  # else the spectra only
+        if rows_kept and isinstance(total, int) and total != self.rows["events"]:
             self._bad("events", f"{self.rows['events']} committed rows, but the summary counts {total} events")
         # a store whose writer had no ledger to write says why in `energy_source` (an
         # import from another DEM code): its empty energy table is not damage

@@ -40,7 +40,8 @@ def write_spectra(parent: zarr.Group, sp: Spectra, codecs) -> None:
     array("lower", lower, ("bin",), "J", "lower edge of each bin")
     array("upper", upper, ("bin",), "J", "upper edge of each bin")
     for name, values in (("kind", KINDS), ("class", CLASSES), ("measure", MEASURES)):
-        g.create_array(name, data=np.array(values, dtype="<U24"), dimension_names=(name,), compressors=None)
+        coord = g.create_array(name, shape=(len(values),), dtype=str, dimension_names=(name,), compressors=None)
+        coord[:] = np.array(values)  # zarr's variable-length strings: fixed-width ones have no zarr v3 spec yet
 
 
 def read_spectra(parent: zarr.Group) -> Spectra | None:

@@ -89,10 +89,21 @@ def run_tui(args: list[str], monkeypatch) -> tuple[int, str, str]:
     def headless(app, *_, **__):
         async def drive():
             async with app.run_test(size=(120, 40)) as pilot:
+                await pilot.press("p")  # pause
                 await pilot.pause()
-                for key in ("p", "s", "q"):  # pause, one frame, quit
-                    await pilot.press(key)
-                    await pilot.pause()
+                before = app.mill.time
+                await pilot.press("s")  # one frame
+                for _ in range(200):
+                    if app.mill.time > before:
+                        break
+                    await asyncio.sleep(0.05)
+                assert app.mill.time > before, "s did not advance the paused mill"
+                await pilot.press("q")
+                for _ in range(200):
+                    if not app.is_running:
+                        break
+                    await asyncio.sleep(0.05)
+                assert not app.is_running, "q did not quit"
 
         asyncio.run(drive())
 

@@ -210,3 +210,17 @@ def test_durations_are_cut_and_only_where_asked():
         ["taimill", "sweep", "p", "--duration", "1", "--out", "k.zarr"]
     assert shortened(["taimill", "run", "p"]) == ["taimill", "run", "p", "--duration", "2"]
     assert shortened(["taimill", "analyse", "k.zarr"]) == ["taimill", "analyse", "k.zarr"]
+
+
+def test_glossary_defines_every_thesis_number_the_code_cites():
+    """Outputs, help texts and docstrings cite the thesis as "eq 3.8", "Table 5.2",
+    "Figs 4.10/4.16": each number must be explained in docs/glossary.md."""
+    cite = re.compile(r"\b(?:eqs?|Tables?|Figs?)\.? ?(\d+\.\d+[a-z]?(?:\s*(?:/|,|–|-|and)\s*\d+\.\d+[a-z]?)*)")
+    glossary = set(re.findall(r"\d+\.\d+", (ROOT / "docs" / "glossary.md").read_text()))
+    missing = {}
+    for path in sorted((ROOT / "taimill").rglob("*.py")):
+        for match in cite.finditer(path.read_text()):
+            for number in re.findall(r"\d+\.\d+", match.group(1)):
+                if number not in glossary:
+                    missing.setdefault(number, path.relative_to(ROOT).as_posix())
+    assert not missing, f"cited but not in docs/glossary.md: {missing}"

@@ -15,7 +15,7 @@ would take too long or cannot run here:
 - a sweep both pages show alike runs once (the second page gets a copy of its store).
 
 A command of any other kind fails the test: a page must not show a command this test
-cannot run."""
+cannot run. The glossary is held to the thesis numbers the code cites."""
 
 from __future__ import annotations
 

@@ -203,7 +203,7 @@ def _measured(points_csv: str) -> dict:
     CSV's folder, labelled by their path from here like the predicted curves."""
     from taimill.outcome.files import read_points
 
-    pts, out = read_points(points_csv), {}
+    pts, out = read_points(points_csv, key="--points"), {}
     for c in dict.fromkeys(pts.condition):
         sel = [i for i, n in enumerate(pts.condition) if n == c]
         label = os.path.normpath(os.path.join(os.path.dirname(points_csv), c))

@@ -48,7 +48,7 @@ class Condition:
         if key not in self._curves:
             count, joules = selected(self.spectra, measure, stress_only=stress_only)
             per_bin = joules if energy else count
-            above = np.concatenate([[per_bin.sum()], per_bin.sum() - np.cumsum(per_bin)])
+            above = np.maximum(np.concatenate([[per_bin.sum()], per_bin.sum() - np.cumsum(per_bin)]), 0.0)
             self._curves[key] = above / self.spectra.seconds / self.powder_g
         return self._curves[key]
 
@@ -87,13 +87,17 @@ def write_file(path, spectra: Spectra, powder_g: float, note: str) -> None:
         f.write("\n")
 
 
-def read_file(path, name: str | None = None) -> Condition:
-    """A condition file; anything else is a one-line ConfigError naming the key."""
+def read_file(path, name: str | None = None, source: str | None = None, key: str = "condition") -> Condition:
+    """A condition file; anything else is a one-line ConfigError naming the key (a file
+    that cannot be read: named with `source` and `key`, taimill.model.files)."""
+    from taimill.model.files import read_text
+
     try:
-        with open(path) as f:
-            doc = json.load(f)
-    except (OSError, ValueError) as err:
-        raise ConfigError(str(path), "file", None, f"not a readable condition file ({err})") from None
+        doc = json.loads(read_text(path, source or str(path), key, "condition file (JSON)"))
+    except ValueError as err:
+        if isinstance(err, ConfigError):
+            raise
+        raise ConfigError(str(path), "file", None, f"not a condition file: not JSON ({err})") from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise ConfigError(str(path), "format", doc.get("format") if isinstance(doc, dict) else doc,
                           f"must be {FORMAT!r} (a condition file)")
@@ -133,7 +137,7 @@ def open_condition(text: str, base: str = ".", source: str = "command line", key
         raise ConfigError(source, key, text, "no such run store, sweep point (SWEEP.zarr#INDEX) or condition file"
                           + (f" (looked in {base})" if base not in ("", ".") else ""))
     if path.endswith(".json") and not point:
-        return read_file(full, text)
+        return read_file(full, text, source, key)
     try:
         if point:
             from taimill.store.sweep import open_sweep

@@ -15,12 +15,12 @@ from __future__ import annotations
 import csv
 import json
 import math
-import tomllib
 from pathlib import Path
 
 import numpy as np
 
 from taimill.errors import ConfigError
+from taimill.model.files import read_text, read_toml
 from taimill.outcome.fit import Fit, Points
 from taimill.store.output import whole_file
 
@@ -28,15 +28,12 @@ COLUMNS = ("condition", "time_s", "value")
 OPTIONAL = ("sigma",)
 
 
-def read_points(path) -> Points:
-    """The measured points of a CSV (module doc); conditions as written in the file."""
+def read_points(path, source: str = "command line", key: str = "POINTS") -> Points:
+    """The measured points of a CSV (module doc); conditions as written in the file. A
+    file that cannot be read is named with `source` and `key` (taimill.model.files)."""
     path = str(path)
-    try:
-        with open(path, newline="") as f:
-            lines = [(n, line) for n, line in enumerate(f.read().splitlines(), 1)
-                     if line.strip() and not line.lstrip().startswith("#")]
-    except (OSError, UnicodeDecodeError) as err:
-        raise ConfigError(path, "file", None, f"cannot be read ({getattr(err, 'strerror', None) or err})") from None
+    text = read_text(path, source, key, "points CSV")
+    lines = [(n, line) for n, line in enumerate(text.splitlines(), 1) if line.strip() and not line.lstrip().startswith("#")]
     if not lines:
         raise ConfigError(path, "header", "", f"missing: the first line names the columns {', '.join(COLUMNS)}[, sigma]")
     n0, head = lines[0]
@@ -117,16 +114,10 @@ def write_fit(path, fit: Fit, header: str) -> None:
         Path(part).write_text("\n".join(lines) + "\n")
 
 
-def read_fit(path) -> Fit:
+def read_fit(path, source: str = "command line", key: str = "FIT") -> Fit:
     """A fit file written by write_fit; a file that is not one is a one-line ConfigError."""
     path = str(path)
-    try:
-        with open(path, "rb") as f:
-            doc = tomllib.load(f)
-    except OSError as err:
-        raise ConfigError(path, "file", None, f"cannot be read ({err.strerror or err})") from None
-    except tomllib.TOMLDecodeError as err:
-        raise ConfigError(path, "file", None, f"not TOML ({err})") from None
+    doc = read_toml(path, source, key, "fit file (TOML)")
     from taimill.outcome.models import MODELS
 
     if doc.get("model") not in MODELS:

@@ -319,3 +319,20 @@ def test_the_shipped_example_is_what_its_script_makes(tmp_path):
             assert "SYNTHETIC" in json.loads(made.read_text())["note"]
         else:
             assert made.read_text().startswith("# SYNTHETIC")
+
+
+def test_a_condition_that_is_no_run_store_or_sweep_is_one_line(tmp_path):
+    import zarr
+
+    zarr.open_group(str(tmp_path / "empty.zarr"), mode="w")
+    zarr.open_group(str(tmp_path / "sweep.zarr"), mode="w").attrs["kind"] = "sweep"
+    write_file(tmp_path / "A.json", A.spectra, 5.0, "SYNTHETIC")
+    write_points(tmp_path / "p.csv", measured(CriticalCollisions(MEASURE), TRUTH, (A,), 0))
+    assert main("kinetics", "fit", tmp_path / "p.csv", "--out", tmp_path / "fit.toml")[0] == 0
+    for cond, words in ((tmp_path / "empty.zarr", ("condition", "empty.zarr", "cannot be read")),
+                        (f"{tmp_path / 'sweep.zarr'}#0", ("sweep.zarr#0", "attrs.plan")),
+                        (tmp_path / "sweep.zarr", ("sweep.zarr", "attrs.plan"))):
+        code, out, err = main("kinetics", "predict", tmp_path / "fit.toml", cond)
+        assert code == 2 and out == "" and err.count("\n") == 1, err
+        for w in words:
+            assert w in err, err

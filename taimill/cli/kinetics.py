@@ -138,7 +138,7 @@ def _expand(names: list[str]) -> list[str]:
     out = []
     for n in names:
         if "#" not in n and is_sweep(n):
-            out += [f"{n}#{i}" for i in sorted(open_sweep(n).done)]
+            out += [f"{n}#{i}" for i in sorted(open_sweep(n).done())]
         else:
             out.append(n)
     return out

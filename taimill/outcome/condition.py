@@ -152,6 +152,8 @@ def open_condition(text: str, base: str = ".", source: str = "command line", key
             run = open_run(full)
     except StoreError as err:
         raise ConfigError(source, key, text, f"cannot be read ({err})") from None
+    if not isinstance(run.config, dict) or not run.config:
+        raise ConfigError(source, key, text, "cannot be read: not a taimill run store (no config attribute)")
     spectra = getattr(run, "spectra", None)
     if spectra is None:
         raise ConfigError(source, key, text, "the run store holds no energy spectra (runs of an older taimill)")

@@ -76,4 +76,10 @@ def time_to(fit: Fit, cond: Condition, target: float) -> tuple[float, float, flo
     if not math.isfinite(v):
         return math.nan, math.nan, math.nan
     q = quantile(fit)
-    return 10.0 ** v, 10.0 ** (v - q * sd), 10.0 ** (v + q * sd)
+    return _exp10(v), _exp10(v - q * sd), _exp10(v + q * sd)
+
+
+def _exp10(x: float) -> float:
+    """10^x, ∞ (or 0) beyond what a float holds: a band as wide as a parameter the data
+    do not fix."""
+    return 10.0 ** x if x < 308 else math.inf

@@ -336,3 +336,25 @@ def test_a_condition_that_is_no_run_store_or_sweep_is_one_line(tmp_path):
         assert code == 2 and out == "" and err.count("\n") == 1, err
         for w in words:
             assert w in err, err
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["fit", "{d}/p.csv", "--out", "{d}/f.toml", "--fix", "bogus=1"], ("--fix", "bogus=1", "kappa_g, e_star_J")),
+    (["fit", "{d}/p.csv", "--out", "{d}/f.toml", "--fix", "e_star_J=abc"], ("--fix", "finite number")),
+    (["fit", "{d}/p.csv", "--out", "{d}/f.toml", "--level", "1.5"], ("--level", "[0.5, 1)")),
+    (["fit", "{d}/p.csv", "--out", "{d}/f.toml", "--measure", "total"], ("--measure", "dissipated_normal")),
+    (["predict", "{d}/dose.toml", "{d}/A.json"], ("--target", "no default target")),
+    (["predict", "{d}/kin.toml", "{d}/A.json", "--target", "1.2"], ("--target", "(0, 1)")),
+])
+def test_bad_options_of_kinetics_are_one_line(tmp_path, argv, words):
+    write_file(tmp_path / "A.json", A.spectra, 5.0, "SYNTHETIC")
+    write_file(tmp_path / "B.json", B.spectra, 5.0, "SYNTHETIC")
+    write_points(tmp_path / "p.csv", measured(CriticalCollisions(MEASURE), TRUTH, (A, B), 0))
+    assert main("kinetics", "fit", tmp_path / "p.csv", "--out", tmp_path / "kin.toml")[0] == 0
+    assert main("kinetics", "fit", tmp_path / "p.csv", "--out", tmp_path / "dose.toml", "--model", "dose-power",
+                "--fix", "e_threshold_J=0")[0] == 0
+    code, out, err = main("kinetics", *[a.format(d=tmp_path) for a in argv])
+    assert code == 2 and out == "" and err.startswith("taimill: error: ") and err.count("\n") == 1, err
+    for w in words:
+        assert w in err, err
+    assert not (tmp_path / "f.toml").exists()

@@ -47,17 +47,21 @@ def register(sub) -> None:
     q.set_defaults(fn=cmd_predict)
 
 
-def _fixed(texts: list[str]) -> dict:
+def _fixed(texts: list[str], model) -> dict:
+    """--fix NAME=VALUE options: parameters of `model` held at a value."""
     from taimill.errors import ConfigError
 
+    names = [p.name for p in model.params]
     out = {}
     for text in texts:
-        name, eq, value = text.partition("=")
+        name, eq, value = (x.strip() for x in text.partition("="))
+        if name not in names:
+            raise ConfigError("command line", "--fix", text, f"NAME=VALUE with NAME one of {', '.join(names)}")
         try:
-            out[name.strip()] = float(value) if eq else math.nan
+            out[name] = float(value) if eq else math.nan
         except ValueError:
-            out[name.strip()] = math.nan
-        if not math.isfinite(out[name.strip()]):
+            out[name] = math.nan
+        if not math.isfinite(out[name]):
             raise ConfigError("command line", "--fix", text, "NAME=VALUE with a finite number")
     return out
 
@@ -77,10 +81,10 @@ def cmd_fit(a) -> int:
 
     if not 0.5 <= a.level < 1:
         raise ConfigError("command line", "--level", a.level, "allowed range [0.5, 1)")
-    fixed = _fixed(a.fix)
+    model = MODELS[a.model](a.measure, a.stress_only)
+    fixed = _fixed(a.fix, model)
     pts = read_points(a.points)
     conds = _conditions(pts.condition, os.path.dirname(a.points) or ".", a.points)
-    model = MODELS[a.model](a.measure, a.stress_only)
     result = fitting.fit(model, conds, pts, fixed, a.level)
     write_fit(a.out, result, f"taimill kinetics fit {a.points}: {model.name} ({model.quantity}) on the "
                              f"{a.measure} spectra{', stress events only' if a.stress_only else ''}")

@@ -358,3 +358,19 @@ def test_bad_options_of_kinetics_are_one_line(tmp_path, argv, words):
     for w in words:
         assert w in err, err
     assert not (tmp_path / "f.toml").exists()
+
+
+def test_the_stress_model_plot_collapses_critical_collision_data_onto_one_curve(tmp_path):
+    # at the true E*, α = 1 − exp(−κ_g SN) at every condition: SN is the dose the model sees
+    model = CriticalCollisions(MEASURE)
+    pts = measured(model, TRUTH, (A, B), 0, sigma=1e-9)
+    rows = stress_model_points({"A": A, "B": B}, zip(pts.condition, pts.time, pts.value), MEASURE, TRUTH["e_star_J"])
+    for r in rows:
+        assert r["value"] == pytest.approx(1 - math.exp(-TRUTH["kappa_g"] * r["stress_number_per_g"]), abs=1e-6)
+    assert rows[0]["stress_energy_J"] < rows[-1]["stress_energy_J"]  # B's events above E* are the larger
+    write_conditions(tmp_path)
+    write_points(tmp_path / "p.csv", measured(model, TRUTH, (A, B), 0))
+    code, _, err = main("kinetics", "fit", tmp_path / "p.csv", "--out", tmp_path / "f.toml",
+                        "--stress-figure", tmp_path / "sm.png")
+    assert code == 0, err
+    assert (tmp_path / "sm.png").stat().st_size > 0

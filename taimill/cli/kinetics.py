@@ -32,6 +32,8 @@ def register(sub) -> None:
     f.add_argument("--level", type=number, default=0.95, help="confidence level of the intervals (default 0.95)")
     f.add_argument("--out", type=path_text, required=True, help="the fit, written as TOML")
     f.add_argument("--figure", type=path_text, help="measured and fitted curves with bands (PNG or SVG)")
+    f.add_argument("--stress-figure", type=path_text,
+                   help="the stress-model plot: measured values against the stress number above the fitted threshold")
     f.add_argument("--json", action="store_true", help="print one JSON object")
     f.set_defaults(fn=cmd_fit)
     q = k.add_parser("predict", help="a fit's curves and time to a target at runs, sweep points or a whole sweep")
@@ -90,6 +92,8 @@ def cmd_fit(a) -> int:
                              f"{a.measure} spectra{', stress events only' if a.stress_only else ''}")
     if a.figure:
         _fit_figure(a.figure, result, conds, pts, predict)
+    if a.stress_figure:
+        _stress_figure(a.stress_figure, model, result, conds, pts)
     for w in result.warnings:
         print(f"taimill: warning: {w}", file=sys.stderr)
     if a.json:
@@ -133,6 +137,20 @@ def _fit_figure(path, result, conds, pts, predict) -> None:
         points[c] = (pts.time[sel], pts.value[sel], None if pts.sigma is None else pts.sigma[sel])
     outcome_figure(path, curves, points, ylabel=predict.model_of(result).quantity,
                    title=f"{result.model} on {result.measure}: fitted ({result.level:.0%} bands)")
+
+
+def _stress_figure(path, model, result, conds, pts) -> None:
+    """Values against the stress number above the fit's threshold: for a model that
+    depends on the dose above the threshold only, the conditions fall on one curve."""
+    from taimill.figures.kinetics import stress_model_figure
+    from taimill.outcome.models import stress_model_points
+
+    name = next(p.name for p in model.params if p.threshold)
+    threshold = {**result.params, **result.fixed}[name]
+    rows = stress_model_points(conds, zip(pts.condition, pts.time, pts.value), model.measure, threshold,
+                               model.stress_only)
+    stress_model_figure(path, rows, ylabel=model.quantity,
+                        title=f"stress model: {model.measure} ≥ {threshold * 1e3:.3g} mJ ({name})")
 
 
 def _expand(names: list[str]) -> list[str]:

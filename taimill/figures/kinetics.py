@@ -46,3 +46,30 @@ def outcome_figure(path, curves: list[dict], points: dict | None = None, target:
     finally:
         plt.close(fig)
     return path
+
+
+def stress_model_figure(path, rows: list[dict], ylabel: str = "value", title: str = "") -> Path:
+    """The stress-model plot (Kwade): the measured quantity against the stress number
+    (events at or above the threshold per gram), one marker colour per condition, its
+    mean stress energy in the legend. `rows`: taimill.outcome.models.stress_model_points."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for i, c in enumerate(dict.fromkeys(r["condition"] for r in rows)):
+        mine = [r for r in rows if r["condition"] == c]
+        se = mine[0]["stress_energy_J"]
+        ax.plot([r["stress_number_per_g"] for r in mine], [r["value"] for r in mine], "o", color=f"C{i % 10}",
+                label=f"{c}: mean SE {se * 1e3:.3g} mJ")
+    ax.set(xscale="log", xlabel="stress number SN (events ≥ threshold per g)", ylabel=ylabel, title=title)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    path = Path(path)
+    try:
+        with whole_file(path, "figure") as part:
+            fig.savefig(part, dpi=150)
+    finally:
+        plt.close(fig)
+    return path

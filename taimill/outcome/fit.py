@@ -271,7 +271,7 @@ def _same_shape(prob: _Problem) -> list[str]:
     names = list(prob.groups)
     if len(names) < 2:
         return [f"one condition ({names[0]}): a threshold is found only from conditions whose spectra differ in shape"]
-    drive = "power" if "e_threshold_J" in {q.name for q in prob.model.params} else "rate"
+    drive = prob.model.drive
     lo, hi = prob.bounds[[q.threshold for q in prob.free].index(True)]
     x = np.linspace(lo, hi, max(2, int((hi - lo) * PER_DECADE)))
     curves = np.array([getattr(prob.conds[c], drive)(10.0 ** x, prob.model.measure, prob.model.stress_only)

@@ -53,6 +53,7 @@ class CriticalCollisions:
     stress_only: bool = False
     name = "critical-collisions"
     quantity = "converted fraction α"
+    drive = "rate"  #: the Condition curve the threshold acts through
     params = (Param("kappa_g", True, "powder mass one critical collision converts (g)"),
               Param("e_star_J", True, "critical energy E* (J)", threshold=True))
 
@@ -107,6 +108,7 @@ class DoseExponential:
     stress_only: bool = False
     name = "dose-exponential"
     quantity = "y (a size)"
+    drive = "power"
     params = (Param("y0", False, "y before milling"), Param("y_inf", False, "y after a very large dose"),
               Param("e_c_kJ_per_g", True, "characteristic specific energy E_c (kJ/g)"),
               Param("e_threshold_J", True, "events below this energy do not count (J)", threshold=True))
@@ -143,6 +145,7 @@ class DosePower:
     stress_only: bool = False
     name = "dose-power"
     quantity = "y (a size)"
+    drive = "power"
     params = (Param("y0", False, "y before milling"),
               Param("e_c_kJ_per_g", True, "specific energy where y has fallen by 2^n (kJ/g)"),
               Param("n", True, "exponent"),

@@ -374,3 +374,29 @@ def test_the_stress_model_plot_collapses_critical_collision_data_onto_one_curve(
                         "--stress-figure", tmp_path / "sm.png")
     assert code == 0, err
     assert (tmp_path / "sm.png").stat().st_size > 0
+
+
+def run_store(path: Path, spectra, powder: dict | None) -> Path:
+    """A finished run store holding only a config and spectra (no simulation)."""
+    from taimill.store.run import ZarrSink
+
+    config = {"balls": {"count": 2, "radius": 0.005}, "duration": 1.0, "dt": 1e-5, "trajectory_rate": 0}
+    sink = ZarrSink(str(path))
+    sink.start(config | ({"powder": powder} if powder else {}), 2, np.full(2, 0.005))
+    sink.spectra(spectra)
+    sink.finish({"dissipated_power": 3.5}, "complete")
+    return path
+
+
+def test_a_run_store_is_a_condition_like_its_condition_file(tmp_path):
+    write_conditions(tmp_path)
+    write_points(tmp_path / "p.csv", measured(CriticalCollisions(MEASURE), TRUTH, (A, B), 0))
+    assert main("kinetics", "fit", tmp_path / "p.csv", "--out", tmp_path / "f.toml")[0] == 0
+    run = run_store(tmp_path / "C.zarr", C.spectra, {"mass": 0.005, "ball_to_powder": 10.0})
+    code, out, err = main("kinetics", "predict", tmp_path / "f.toml", run, tmp_path / "C.json", "--json")
+    assert code == 0, err
+    a, b = json.loads(out)["conditions"]
+    assert a["time_to_target_s"] == b["time_to_target_s"] and a["condition"] == str(run)
+    bare = run_store(tmp_path / "bare.zarr", C.spectra, None)
+    code, out, err = main("kinetics", "predict", tmp_path / "f.toml", bare)
+    assert code == 2 and "bare.zarr" in err and "no powder" in err and err.count("\n") == 1, err

@@ -266,7 +266,9 @@ GOOD = "A.json,60,0.1,0.03"
     (f"condition,time_s,value,sigma\n{GOOD}\n# a comment\nA.json,5,0.2,\n", ":4:", ("column 4 (sigma)", "every line")),
     (f"condition,time_s,value,sigma\n{GOOD}\n,5,0.2,0.03\n", ":3:", ("column 1 (condition)", "empty")),
     ("condition,time_s,value\n", "", ("no measured points",)),
-    ("condition,time_s,value\nnowhere.zarr,5,0.2\n", "", ("condition", "nowhere.zarr", "no such run store")),
+    ("condition,time_s,value\nA.json,1,0.1\nnowhere.zarr,5,0.2\n", ":3:", ("column 1 (condition)", "nowhere.zarr",
+                                                                     "no such run store")),
+    ("time_s,value,condition\n1,0.1,A.json\n5,0.2,nowhere.json\n", ":3:", ("column 3 (condition)", "nowhere.json")),
 ])
 def test_malformed_points_get_one_line_errors_naming_file_line_and_column(tmp_path, text, where, names):
     write_file(tmp_path / "A.json", A.spectra, 5.0, "SYNTHETIC")
@@ -400,3 +402,12 @@ def test_a_run_store_is_a_condition_like_its_condition_file(tmp_path):
     bare = run_store(tmp_path / "bare.zarr", C.spectra, None)
     code, out, err = main("kinetics", "predict", tmp_path / "f.toml", bare)
     assert code == 2 and "bare.zarr" in err and "no powder" in err and err.count("\n") == 1, err
+
+
+def test_uncertainties_too_small_for_the_scatter_are_reported():
+    model = CriticalCollisions(MEASURE)
+    pts = measured(model, TRUTH, (A, B), 0)  # scatter sd 0.03 …
+    pts.sigma = np.full(len(pts.value), 0.003)  # … claimed ten times smaller
+    f = fitting.fit(model, {"A": A, "B": B}, pts)
+    assert f.goodness["p_value"] < 0.01
+    assert any("does not fit within the given uncertainties" in w for w in f.warnings), f.warnings

@@ -68,10 +68,17 @@ def _fixed(texts: list[str], model) -> dict:
     return out
 
 
-def _conditions(names, base: str, source: str) -> dict:
+def _conditions(names, base: str, source: str, pts=None) -> dict:
+    """The conditions named, each opened once; a bad one named with the first line of
+    the points file `pts` that gives it (or with `source`)."""
     from taimill.outcome.condition import open_condition
 
-    return {c: open_condition(c, base, source, "condition") for c in dict.fromkeys(names)}
+    out = {}
+    for i, c in enumerate(names):
+        if c not in out:
+            where, key = (f"{source}:{pts.lines[i]}", f"column {pts.condition_column} (condition)") if pts else (source, "condition")
+            out[c] = open_condition(c, base, where, key)
+    return out
 
 
 def cmd_fit(a) -> int:
@@ -86,7 +93,7 @@ def cmd_fit(a) -> int:
     model = MODELS[a.model](a.measure, a.stress_only)
     fixed = _fixed(a.fix, model)
     pts = read_points(a.points)
-    conds = _conditions(pts.condition, os.path.dirname(a.points) or ".", a.points)
+    conds = _conditions(pts.condition, os.path.dirname(a.points) or ".", a.points, pts)
     result = fitting.fit(model, conds, pts, fixed, a.level)
     write_fit(a.out, result, f"taimill kinetics fit {a.points}: {model.name} ({model.quantity}) on the "
                              f"{a.measure} spectra{', stress events only' if a.stress_only else ''}")

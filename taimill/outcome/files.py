@@ -49,7 +49,7 @@ def read_points(path, source: str = "command line", key: str = "POINTS") -> Poin
                           f"{'unknown' if extra else 'given twice'}: the columns are {', '.join(COLUMNS + OPTIONAL)}")
     if len(lines) < 2:
         raise ConfigError(path, "points", 0, "no measured points below the header")
-    cond, t, y, s = [], [], [], []
+    cond, t, y, s, where_from = [], [], [], [], []
     for n, line in lines[1:]:
         row = [x.strip() for x in next(csv.reader([line]))]
         if len(row) != len(header):
@@ -61,6 +61,7 @@ def read_points(path, source: str = "command line", key: str = "POINTS") -> Poin
             raise ConfigError(where["condition"], key["condition"], "", "empty: name a run store, SWEEP.zarr#INDEX "
                               "or a condition file")
         cond.append(cell["condition"])
+        where_from.append(n)
         t.append(_number(cell["time_s"], where["time_s"], key["time_s"], 0.0, "a number of seconds ≥ 0"))
         y.append(_number(cell["value"], where["value"], key["value"], None, "a finite number"))
         if "sigma" in cell:
@@ -71,7 +72,7 @@ def read_points(path, source: str = "command line", key: str = "POINTS") -> Poin
         raise ConfigError(f"{path}:{n}", f"column {header.index('sigma') + 1} (sigma)", "",
                           "give sigma on every line or on none (the fit weights all points alike or by their sigma)")
     sigma = np.array(s, dtype=float) if s and s[0] is not None else None
-    return Points(cond, np.array(t), np.array(y), sigma, path)
+    return Points(cond, np.array(t), np.array(y), sigma, path, where_from, header.index("condition") + 1)
 
 
 def _number(text: str, where: str, key: str, lo, allowed: str, strict: bool = False) -> float:

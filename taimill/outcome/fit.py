@@ -50,6 +50,8 @@ class Points:
     value: np.ndarray
     sigma: np.ndarray | None = None
     source: str = "points"
+    lines: list[int] | None = None  #: each point's line in its file
+    condition_column: int = 1  #: the condition's column in the file (1 = first)
 
 
 @dataclass

@@ -34,13 +34,14 @@ LAYERS: dict[str, set[str]] = {
     "physics": NEUTRAL | {"model"},
     "store": NEUTRAL | {"model"},
     "analysis": NEUTRAL | {"model", "store"},
-    "figures": NEUTRAL | {"model", "store", "analysis"},
+    "outcome": NEUTRAL | {"model", "store", "analysis"},
+    "figures": NEUTRAL | {"model", "store", "analysis", "outcome"},
     "recording": NEUTRAL | {"model", "store", "analysis"},
     "bridge": NEUTRAL | {"model", "store", "analysis"},
     "runs": NEUTRAL | {"model", "physics", "store", "analysis"},
     "calibration": NEUTRAL | {"model", "physics", "store", "analysis", "runs"},
     "tui": NEUTRAL | {"model", "store", "analysis", "figures", "recording", "runs"},
-    "cli": NEUTRAL | {"model", "store", "analysis", "figures", "recording", "runs", "calibration", "tui", "bridge"},
+    "cli": NEUTRAL | {"model", "store", "analysis", "figures", "recording", "runs", "calibration", "tui", "bridge", "outcome"},
 }
 # The recording takes its colour tables from matplotlib's colormaps; it draws nothing.
 THIRD_PARTY_HOMES = {"taichi": {"physics"}, "matplotlib": {"figures", "recording"}}

@@ -38,7 +38,7 @@ LAYERS: dict[str, set[str]] = {
     "figures": NEUTRAL | {"model", "store", "analysis", "outcome"},
     "recording": NEUTRAL | {"model", "store", "analysis"},
     "bridge": NEUTRAL | {"model", "store", "analysis"},
-    "runs": NEUTRAL | {"model", "physics", "store", "analysis"},
+    "runs": NEUTRAL | {"model", "physics", "store", "analysis", "outcome"},
     "calibration": NEUTRAL | {"model", "physics", "store", "analysis", "runs"},
     "tui": NEUTRAL | {"model", "store", "analysis", "figures", "recording", "runs"},
     "cli": NEUTRAL | {"model", "store", "analysis", "figures", "recording", "runs", "calibration", "tui", "bridge", "outcome"},

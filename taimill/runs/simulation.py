@@ -10,6 +10,7 @@ import time
 from taimill.analysis.summary import SummarySink
 from taimill.errors import SimulationUnstable
 from taimill.model.spec import from_preset
+from taimill.outcome.dose import dose_keys, shear_keys
 from taimill.physics.runner import Runner
 from taimill.runs import signals
 from taimill.runs.signals import sigterm_interrupts
@@ -36,6 +37,9 @@ def point_result(preset, spec, summary, runner, b, wall, status) -> dict:
                   ratio=preset.drive.ratio, plate_rpm=preset.drive.plate_rpm)
     if preset.softening != 1.0:  # the run's contacts are not the measured ones: said with every result
         result["softening"] = preset.softening
+    # the dose per gram of powder (with a [powder] table) and the gentle / shear view
+    result.update(dose_keys(result, preset.as_dict()))
+    result.update(shear_keys(result, summary.summary.geom.wall_area))
     return with_units(result)
 
 

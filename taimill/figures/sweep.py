@@ -38,6 +38,7 @@ from taimill.errors import ConfigError
 from taimill.model.files import csv_cells, read_text
 from taimill.analysis.sweep import (REGIMES, SweepAxes, axis_label, axis_scale, curves, first_value, mean_band,
                                     regime_fractions, sweep_axes, value_text, x_values)
+from taimill.figures.layout import legend_outside
 from taimill.figures.sweep_map import MAPS, map_figure, mark_critical
 from taimill.store.output import whole_file
 
@@ -151,14 +152,15 @@ def sweep_figure(table, title, panels, ylabel, scale, peaks=(), measured=None, a
         _mixed_legend(ax, drawn)
         if axes.x == "ratio":  # landmarks of K
             _mark_peaks(ax, peaks, column, scale)
-            mark_critical(ax, table)
+            mark_critical(ax, table, axes)
         ax.set_title(panel, fontsize=10)
         _x_axis(ax, table, axes)
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
         if measured is not None:
             _overlay(ax, measured)
-        ax.legend(fontsize=8, loc="upper left")
+        else:
+            legend_outside(ax, fontsize=8)
     if any(np.isfinite(band(table, r, panels[0][0], axes.x)[2]).any() for r in groups.values()):
         title += " — mean of replicas, 95 % band"
     if any(g["bistable"] for rows in groups.values() for g in regime_groups(table, rows, axes)):
@@ -227,12 +229,12 @@ def _regime_figure(table, axes: SweepAxes | None = None):
         if any_mixed:
             ax.plot([], [], "o", ms=12, mfc="none", mec="k", mew=1.2, label="replicas in different regimes")
         if axes.x == "ratio":
-            mark_critical(ax, table)
+            mark_critical(ax, table, axes)
         ax.set_title(regime, fontsize=10)
         _x_axis(ax, table, axes)
         ax.set_ylim(-0.05, 1.05)
         ax.grid(alpha=0.3)
-    plots[0][0].legend(fontsize=8, loc="best")
+    legend_outside(plots[0][-1], handles=plots[0][0].get_legend_handles_labels()[0], fontsize=8)
     plots[0][0].set_ylabel("share of the replicas")
     fig.suptitle(f"Motion regime of the replicas at each {axis_label(axes.x).split(' (')[0]} (taimill.analysis.regime)",
                  fontsize=11)
@@ -257,7 +259,8 @@ def _overlay(ax, measured):
             twin.set_ylabel(f"measured ({unit.group(1)})")
     if not twin.get_ylabel():
         twin.set_ylabel("measured")
-    twin.legend(fontsize=8, loc="upper right")
+    handles = [h for a in (ax, twin) for h in a.get_legend_handles_labels()[0]]
+    legend_outside(twin, handles=handles, fontsize=8, gap=0.7)  # right of the twin axis' labels
 
 
 def _bare(name: str) -> str:

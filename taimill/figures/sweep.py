@@ -54,6 +54,7 @@ FIGURES = (
 K_LABEL = "K = ω/Ω + 1 (jar spin / plate spin; |K| grows to the right)"
 REGIME_MARKERS = {"cascading": "s", "cataracting": "^", "rolling": "v"}  # any other label: "x"
 MIXED_LABEL = "mean over replicas in different regimes"
+LEGEND_WIDTH = 2.5  # inches added to a figure for the legends outside its panels
 
 
 def figure_stems(table: dict, overlay: bool = False) -> list[str]:
@@ -137,7 +138,7 @@ def sweep_figure(table, title, panels, ylabel, scale, peaks=(), measured=None, a
     import matplotlib.pyplot as plt
 
     axes = axes or sweep_axes(table)
-    fig, plots = plt.subplots(1, len(panels), figsize=(6.4 * len(panels), 4.6), squeeze=False)
+    fig, plots = plt.subplots(1, len(panels), figsize=(6.4 * len(panels) + LEGEND_WIDTH, 4.6), squeeze=False)
     groups = curves(table, axes)
     for ax, (column, panel) in zip(plots[0], panels):
         drawn: set[str] = set()
@@ -216,7 +217,8 @@ def _regime_figure(table, axes: SweepAxes | None = None):
     import matplotlib.pyplot as plt
 
     axes = axes or sweep_axes(table)
-    fig, plots = plt.subplots(1, len(REGIMES), figsize=(5.2 * len(REGIMES), 4.2), squeeze=False, sharey=True)
+    fig, plots = plt.subplots(1, len(REGIMES), figsize=(5.2 * len(REGIMES) + LEGEND_WIDTH, 4.2), squeeze=False,
+                              sharey=True)
     per_curve = {label: regime_groups(table, rows, axes) for label, rows in curves(table, axes).items()}
     any_mixed = any(g["bistable"] for groups in per_curve.values() for g in groups)
     for ax, regime in zip(plots[0], REGIMES):
@@ -273,7 +275,7 @@ def _save(fig, path: Path) -> Path:
 
     try:
         with whole_file(path, "figure") as part:
-            fig.savefig(part, dpi=120)
+            fig.savefig(part, dpi=120, bbox_inches="tight")  # the legends outside the panels too
     finally:
         plt.close(fig)
     return path

@@ -75,7 +75,7 @@ def map_figure(table: dict, column: str, label: str, scale: float = 1.0, axes: S
         if np.all(ux <= 0):
             ax.invert_xaxis()
         if axes.x == "ratio":
-            mark_critical(ax, table, SweepAxes(axes.x, None, tuple(c for c in axes.curves if c != axes.y), axes.fixed))
+            mark_critical(ax, table, axes)
         if panel != "all points":
             ax.set_title(panel, fontsize=10)
         fig.colorbar(mesh, ax=ax, label=label)
@@ -106,16 +106,20 @@ CRITICAL_STYLES = ("--", ":", "-.", (0, (6, 2, 1, 2, 1, 2)), (0, (1, 3)))
 
 def mark_critical(ax, table, axes: SweepAxes | None = None):
     """K_c = -√(R_p / (R_jar - r)) for each geometry in the sweep (docs/model.md): one
-    line per distinct K_c, each its own legend entry naming the curves (jars, balls …)
-    it belongs to when there are several."""
-    geoms = [(float(a), float(b), float(c)) for a, b, c in zip(table["plate_radius"], table["jar_radius"], table["ball_radius"])]
-    owners: dict[float, list[str]] = {}
-    groups = curves(table, axes) if len(set(geoms)) > 1 else {}
-    for label, rows in groups.items():
-        for kc in dict.fromkeys(round(critical_ratio(*geoms[r]), 6) for r in rows):
-            owners.setdefault(kc, []).append(label)
-    lines = sorted({round(critical_ratio(*g), 6) for g in geoms})
+    line per distinct K_c, each its own legend entry; with several, each names the
+    values of the swept axes (axes.curves) that give it ("d = 8 mm"), leaving out an
+    axis whose every value shares the line (jars of one radius)."""
+    axes = axes or sweep_axes(table)
+    geoms = zip(table["plate_radius"], table["jar_radius"], table["ball_radius"])
+    kcs = np.array([round(critical_ratio(float(a), float(b), float(c)), 6) for a, b, c in geoms])
+    lines = sorted(set(kcs.tolist()))
     for n, kc in enumerate(lines):
-        whose = f" ({', '.join(owners[kc])})" if len(lines) > 1 and owners.get(kc) else ""
+        parts = []
+        for c in axes.curves if len(lines) > 1 else ():
+            column = [_item(v) for v in table[c]]
+            mine = list(dict.fromkeys(v for v, k in zip(column, kcs) if k == kc))
+            if len(mine) < len(set(column)):
+                parts += [value_text(c, v) for v in mine]
+        whose = f" ({', '.join(parts)})" if parts else ""
         ax.axvline(kc, color="0.3", ls=CRITICAL_STYLES[n % len(CRITICAL_STYLES)], lw=1,
                    label=f"K_c = {kc:.2f}, one ball{whose}")

@@ -218,3 +218,21 @@ def test_one_legend_entry_per_critical_ratio_line_and_legends_outside():
             if ax.get_legend():
                 assert not ax.get_legend().get_window_extent().overlaps(ax.get_window_extent())
         plt.close(fig)
+
+
+def test_a_window_without_events_says_so_instead_of_drawing_flat_lines(analysis):
+    """A charge resting on the wall (CY fluorite) ends no contact in the window: the
+    spectra and maps say there is nothing rather than draw zeros over twelve decades."""
+    import copy
+
+    from taimill.analysis.events import EventStats
+
+    a = copy.copy(analysis)
+    a.summary = copy.copy(analysis.summary)
+    a.summary.stats = EventStats(t0=a.t0, t1=a.t1)  # no event added
+    for draw in (draw_se, draw_dissipation_spectra, draw_velocity_pdfs):
+        fig, ax = plt.subplots()
+        draw(ax, a)
+        assert not ax.get_lines() or all(line.get_linestyle() == ":" for line in ax.get_lines())
+        assert any("no stress event in the analysis window" in t.get_text() for t in ax.texts)
+        plt.close(fig)

@@ -100,19 +100,21 @@ def draw_velocity_pdfs(ax, a: RunAnalysis):
     centres = np.sqrt(SPEED_BINS[1:] * SPEED_BINS[:-1]) * MM
     for hist, name, ls in ((a.event.hist_un, "normal u̇n", "-"), (a.event.hist_ut, "tangential u̇t", "--")):
         for k, kind in enumerate(("ball–ball", "ball–wall")):
-            ax.plot(centres, log_pdf(hist[k], SPEED_BINS), ls=ls, color=f"C{k}", label=f"{name}, {kind}")
+            if hist[k].sum():
+                ax.plot(centres, log_pdf(hist[k], SPEED_BINS), ls=ls, color=f"C{k}", label=f"{name}, {kind}")
     ax.set(xscale="log", xlabel="onset relative speed (mm/s)", ylabel="probability density (1/decade)",
            title="Onset velocity distributions")
     fit_log(ax, occupied(SPEED_BINS, a.event.hist_un, a.event.hist_ut) * MM)
-    legend_outside(ax)
+    _legend_or_none(ax, "stress event")
 
 
 def draw_se(ax, a: RunAnalysis):
     centres = np.sqrt(ENERGY_BINS[1:] * ENERGY_BINS[:-1]) * MM
     n = a.event.hist_se_n.sum(axis=0)
     t = a.event.hist_se_t.sum(axis=0)
-    ax.plot(centres, log_pdf(n, ENERGY_BINS), label="normal")
-    ax.plot(centres, log_pdf(t, ENERGY_BINS), label="tangential")
+    for hist, label, c in ((n, "normal", "C0"), (t, "tangential", "C1")):
+        if hist.sum():
+            ax.plot(centres, log_pdf(hist, ENERGY_BINS), color=c, label=label)
     r = a.event.result(a.tau)
     for key, c in (("mean_se_normal", "C0"), ("mean_se_tangential", "C1")):
         if np.isfinite(r[key]):
@@ -120,7 +122,24 @@ def draw_se(ax, a: RunAnalysis):
     ax.set(xscale="log", xlabel="stress energy per event (mJ)", ylabel="probability density (1/decade)",
            title=f"Stress energy ({_estimator(a)}); dotted: means")
     fit_log(ax, occupied(ENERGY_BINS, n, t) * MM)
-    legend_outside(ax)
+    _legend_or_none(ax, "stress event")
+
+
+def _legend_or_none(ax, what: str):
+    """The legend outside the axes, or, with nothing drawn, say so on them."""
+    if ax.get_legend_handles_labels()[0]:
+        legend_outside(ax)
+    else:
+        _nothing(ax, what)
+
+
+def _nothing(ax, what: str):
+    ax.text(0.5, 0.5, f"no {what} in the analysis window", ha="center", va="center", color="0.35",
+            transform=ax.transAxes)
+
+
+def _number(v: float) -> str:
+    return f"{v:.3g}" if np.isfinite(v) else "–"
 
 
 def _estimator(a: RunAnalysis) -> str:
@@ -157,8 +176,7 @@ def draw_dissipation_spectra(ax, a: RunAnalysis):
     ax.set(xscale="log", xlabel="energy dissipated per event (mJ)", ylabel="probability density (1/decade)",
            title=f"Dissipated-energy spectra ({_estimator(a)})")
     fit_log(ax, occupied(ENERGY_BINS, a.event.hist_diss_n, a.event.hist_diss_t) * MM)
-    if ax.lines:
-        legend_outside(ax)
+    _legend_or_none(ax, "stress event")
 
 
 def draw_contact_map(ax, a: RunAnalysis, fig):
@@ -171,6 +189,8 @@ def draw_contact_map(ax, a: RunAnalysis, fig):
     ax.set_title("Ball–jar impacts on the unrolled side wall")
     if len(un):
         colorbar_beside(fig, sc, ax, "onset normal speed u̇n (mm/s)")
+    else:
+        _nothing(ax, "ball–jar impact")
 
 
 def _wall_axes(ax, a: RunAnalysis):
@@ -220,8 +240,11 @@ def draw_wear_map(axes, a: RunAnalysis, fig):
                 ax.add_patch(plt.Circle((0, 0), r, fill=False, ec=HOT_COLOUR, lw=1.2))
         ax.set(xlabel="x (mm)", ylabel="y (mm)", title=s)
     label = "W/m² (impact ½mu̇n² + friction work)"
-    colorbar_beside(fig, im, axes[0], label)
-    colorbar_beside(fig, im, axes[2], label)
+    if norm is not None:
+        colorbar_beside(fig, im, axes[0], label)
+        colorbar_beside(fig, im, axes[2], label)
+    else:
+        _nothing(axes[0], f"wall cell with {MIN_EVENTS} events or more")
     handles = [plt.Rectangle((0, 0), 1, 1, fc=SPARSE_GREY, ec="none", label=f"fewer than {MIN_EVENTS} events: not shown")]
     if hot.get("kind", "spot") == "spot" and hot.get("surface"):
         handles.append(plt.Line2D([], [], ls="none", marker="+", color=HOT_COLOUR, ms=10, mew=2,
@@ -350,7 +373,7 @@ def overview(a: RunAnalysis):
     e = q["event_estimator"]
     sink = f" (main sink: {q['main_sink']['mechanism']})" if q.get("main_sink") else ""
     fig.suptitle(f"K = {a.geom.ratio:.3g}, Ω = {q['plate_rpm']:.4g} rpm — {q['regime']} "
-                 f"(confidence {q['regime_confidence']:.2f}); ⟨SE⟩ = {e['mean_se'] * MM:.3g} mJ, "
+                 f"(confidence {q['regime_confidence']:.2f}); ⟨SE⟩ = {_number(e['mean_se'] * MM)} mJ, "
                  f"E_I/τ = {e['impact_power']:.3g} W, {e['collision_rate']:.4g} /s ({_estimator(a)}); "
                  f"dissipated {q['dissipated_power']:.3g} W{sink}", fontsize=11)
     return fig

@@ -236,3 +236,15 @@ def test_a_window_without_events_says_so_instead_of_drawing_flat_lines(analysis)
         assert not ax.get_lines() or all(line.get_linestyle() == ":" for line in ax.get_lines())
         assert any("no stress event in the analysis window" in t.get_text() for t in ax.texts)
         plt.close(fig)
+
+
+def test_a_band_too_sparse_to_judge_is_not_called_uniform():
+    """800 hits round a row of ≈ 100 cells: most cells hold fewer than MIN_EVENTS, so
+    no cell can stand out, and that says nothing about uniformity."""
+    g, rng = geometry(), np.random.default_rng(5)
+    wm = WallMap(g)
+    wm.add(uniform_band(g, rng, n=800))
+    h = wm.hot_spot(10.0)
+    assert h["kind"] == "band" and h["band"]["sampled_share"] < 0.9
+    text = hot_spot_text(h)
+    assert "uniform around the wall" not in text.split(";")[1] and "too few to tell" in text

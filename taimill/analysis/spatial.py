@@ -22,9 +22,13 @@ MAX_CELLS = 256  # wall-map cells across the jar's diameter or height at most
 # largest cell 1.6× the row's mean) from naming its largest cell; the standard errors
 # keep a cell of a few large impacts from it. 4 standard errors: among the ≈ 3000 cells
 # of a map, a Gaussian fluctuation that large is expected less than once in ten maps.
+# A band without a hot spot is called uniform around the wall only when at least
+# UNIFORM_SHARE of its cells hold MIN_EVENTS events: in a short window most cells are too
+# sparse for any to stand out, which says nothing about uniformity.
 MIN_EVENTS = 10
 SPOT_FACTOR = 2.0
 SPOT_SIGMAS = 4.0
+UNIFORM_SHARE = 0.9
 
 
 class RadialDensity:
@@ -190,8 +194,9 @@ class WallMap:
                 if a_b <= 0 or n_b < MIN_EVENTS:
                     continue
                 p_b = e_b / a_b / tau
+                share = float(np.mean(count[inside & (area > 0)] >= MIN_EVENTS))
                 if hottest is None or p_b > hottest[0]:
-                    hottest = (p_b, surface, edges[b:b + 2])
+                    hottest = (p_b, surface, edges[b:b + 2], share)
                 cells = inside & (count >= MIN_EVENTS) & (area > 0) & (area < a_b)
                 if not cells.any():
                     continue
@@ -205,23 +210,24 @@ class WallMap:
                     if spot is None or p[i] > spot[0]:
                         k = tuple(int(c[i]) for c in np.nonzero(cells))
                         spot = (float(p[i]), surface, k, float(p_r[i]),
-                                float((p[i] - p_r[i]) / sigma[i]) if sigma[i] > 0 else math.inf, edges[b:b + 2], p_b)
+                                float((p[i] - p_r[i]) / sigma[i]) if sigma[i] > 0 else math.inf, edges[b:b + 2], p_b,
+                                share)
         if hottest is None:
             return {"surface": None, "power_per_area": 0.0, "concentration": math.nan}
 
         def concentration(p):
             return float(p / mean) if mean > 0 else math.nan
 
-        def band_of(surface, edges, p_b):
+        def band_of(surface, edges, p_b, share):
             extent = "z_range" if surface == "side" else "r_range"
             return {"surface": surface, extent: [float(edges[0]), float(edges[1])], "power_per_area": float(p_b),
-                    "concentration": concentration(p_b)}
+                    "concentration": concentration(p_b), "sampled_share": share}
 
         if spot is None:
-            p_b, surface, edges = hottest
+            p_b, surface, edges, share = hottest
             return {"kind": "band", "surface": surface, "power_per_area": float(p_b),
-                    "concentration": concentration(p_b), "band": band_of(surface, edges, p_b)}
-        p, surface, (a, b), p_r, sigmas, edges, p_b = spot
+                    "concentration": concentration(p_b), "band": band_of(surface, edges, p_b, share)}
+        p, surface, (a, b), p_r, sigmas, edges, p_b, share = spot
         out = {"kind": "spot", "surface": surface, "power_per_area": float(p), "concentration": concentration(p),
                "over_band": float(p / p_r) if p_r > 0 else math.inf, "band_sigmas": float(sigmas)}
         if surface == "side":
@@ -231,7 +237,7 @@ class WallMap:
         else:
             xc, yc = (0.5 * (self.xy_edges[i] + self.xy_edges[i + 1]) for i in (a, b))
             out.update(x=float(xc), y=float(yc), angle_deg=float(math.degrees(math.atan2(yc, xc))))
-        out["band"] = band_of(surface, edges, p_b)
+        out["band"] = band_of(surface, edges, p_b, share)
         return out
 
     def _energy(self, surface: str, layer: str) -> np.ndarray:
@@ -256,9 +262,19 @@ def hot_spot_text(h: dict) -> str:
                 if "band" in h else "")
         return f"wear hot spot: {where}, {wall}{band}"
     around = "the wall" if h["surface"] == "side" else "the axis"
-    return (f"wear: no hot spot (no cell exceeds the rest of its band {SPOT_FACTOR:g}× and by {SPOT_SIGMAS:g} standard "
-            f"errors); most in the {h['surface'].replace('side', 'side wall')}'s {_band_name(h['band'])}, uniform "
-            f"around {around}, {wall}")
+    where = f"most in the {h['surface'].replace('side', 'side wall')}'s {_band_name(h['band'])}"
+    if uniform(h):
+        return (f"wear: no hot spot; {where}, uniform around {around} (no cell exceeds the rest of its band "
+                f"{SPOT_FACTOR:g}× and by {SPOT_SIGMAS:g} standard errors), {wall}")
+    share = h["band"].get("sampled_share", math.nan)
+    return (f"wear: no hot spot found; {where}, {wall}; only {share:.0%} of its cells have {MIN_EVENTS} events or "
+            f"more, too few to tell whether it is uniform around {around} (a longer window would)")
+
+
+def uniform(h: dict) -> bool:
+    """True if WallMap.hot_spot found no spot and its band has enough sampled cells
+    (UNIFORM_SHARE) to be called uniform around the wall."""
+    return h.get("kind") == "band" and h["band"].get("sampled_share", 0.0) >= UNIFORM_SHARE
 
 
 def _band_name(band: dict) -> str:

@@ -16,7 +16,7 @@ from matplotlib.colors import ListedColormap, LogNorm  # noqa: E402
 
 from taimill.analysis.events import ENERGY_BINS, SPEED_BINS, log_pdf  # noqa: E402
 from taimill.analysis.run import RunAnalysis  # noqa: E402
-from taimill.analysis.spatial import MIN_EVENTS  # noqa: E402
+from taimill.analysis.spatial import MIN_EVENTS, uniform  # noqa: E402
 from taimill.figures.layout import colorbar_beside, fit_log, legend_outside, occupied  # noqa: E402
 from taimill.store.output import whole_file  # noqa: E402
 
@@ -252,8 +252,9 @@ def draw_wear_map(axes, a: RunAnalysis, fig):
                                   else "hot spot"))
     elif band:
         around = "wall" if band["surface"] == "side" else "axis"
-        handles.append(plt.Rectangle((0, 0), 1, 1, fill=False, ec=HOT_COLOUR, lw=1.5,
-                                     label=f"most wear: this band, uniform around the {around} (no hot spot)"))
+        why = (f"uniform around the {around}, no hot spot" if uniform(hot) else
+               f"no hot spot found; {band['sampled_share']:.0%} of its cells with ≥ {MIN_EVENTS} events")
+        handles.append(plt.Rectangle((0, 0), 1, 1, fill=False, ec=HOT_COLOUR, lw=1.5, label=f"most wear: this band ({why})"))
     legend_outside(axes[0], handles=handles, below=True, gap=0.45, ncol=2, frameon=False)
 
 

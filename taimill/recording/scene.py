@@ -48,6 +48,7 @@ SE_DECADES = 4.0  # colour range of stress energies below ½ m V²
 UN_DECADES = 2.0  # colour range of contact-map onset speeds below V (wall impacts: ≈ V/50 … V)
 OUTLINE_POINTS = 720  # profile vertices drawn (of the fine outline's thousands)
 EDGES = 24  # vertical wall edges drawn
+TOTAL_COLOUR = [235, 195, 60, 255]  # the mean-SE total, apart from its normal (plasma) and tangential (cool) parts
 COLORMAPS = {"speed": "viridis", "normal": "plasma", "tangential": "cool", "contact": "turbo"}
 
 # series path -> (plot, legend name, unit)
@@ -148,7 +149,7 @@ def log_scenery(rec: rr.RecordingStream, config: dict, fine: np.ndarray, radii: 
                                        colors=[120, 120, 120, 255]), static=True)
     for path, (_, name, _) in SERIES.items():
         kind = path.rpartition("/")[2]
-        color = shade(lut(COLORMAPS[kind]), np.array(0.6)) if kind in IMPACTS else None
+        color = shade(lut(COLORMAPS[kind]), np.array(0.6)) if kind in IMPACTS else TOTAL_COLOUR if kind == "total" else None
         rec.log(f"/stats/{path}", rr.SeriesLines(names=name, colors=color), static=True)
 
 

@@ -30,12 +30,30 @@ CY = ROOT / "presets/p4-cy-steel.toml"
 
 
 @pytest.fixture(scope="module")
-def analysis(tmp_path_factory):
+def stored(tmp_path_factory):
     out = tmp_path_factory.mktemp("figs") / "cy.zarr"
     r = subprocess.run([sys.executable, "-m", "taimill.cli", "run", str(CY), "--duration", "1.5", "--analysis-start",
                         "0.5", "--out", str(out)], capture_output=True, text=True, cwd=ROOT, timeout=600)
     assert r.returncode == 0, r.stderr
-    return analyse(out)
+    return out, r.stdout
+
+
+@pytest.fixture(scope="module")
+def analysis(stored):
+    return analyse(stored[0])
+
+
+def test_run_and_analyse_name_the_wear_band_of_a_short_run_without_claiming_a_spot(stored):
+    """A 1 s window leaves most wall cells with fewer than MIN_EVENTS events: `run` and
+    `analyse` say no hot spot was found and why, and name no angle."""
+    from inprocess import main
+
+    code, out, err = main("analyse", stored[0])
+    assert code == 0, err
+    for text in (stored[1], out):
+        line = next(ln for ln in text.splitlines() if ln.startswith("wear"))
+        assert line.startswith("wear: no hot spot found; most in the side wall's band z = ") and "°" not in line
+        assert f"have {MIN_EVENTS} events or more, too few to tell" in line
 
 
 # ------------------------------------------------------------------ log axes

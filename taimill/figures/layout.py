@@ -1,11 +1,11 @@
-"""Placement rules every taimill figure follows: a log axis spans its data (no empty
+"""Placement rules every taimill figure follows (matplotlib imported on use, as by the
+figure modules that import this one): a log axis spans its data (no empty
 decades), a legend sits outside the axes (never on the data), a colour bar sits right
 beside its map (also beside an equal-aspect map narrower than its layout cell)."""
 
 from __future__ import annotations
 
 import numpy as np
-from matplotlib.transforms import Bbox, ScaledTranslation
 
 LOG_MARGIN = 10**0.1  # a fitted log axis reaches 0.1 decade beyond its data on each side
 LEGEND_GAP = 0.08  # inches between the axes (or what is beside them) and an outside legend
@@ -42,6 +42,8 @@ def legend_outside(ax, *, below: bool = False, gap: float = LEGEND_GAP, **kwargs
     axes' right edge (more where a twin axis has its labels there); or, `below`, under
     the axes, centred, `gap` inches under their bottom edge (leave room for the tick
     labels and axis label)."""
+    from matplotlib.transforms import ScaledTranslation
+
     offset = ScaledTranslation(0.0 if below else gap, -gap if below else 0.0, ax.figure.dpi_scale_trans)
     at, loc = ((0.5, 0.0), "upper center") if below else ((1.0, 1.0), "upper left")
     return ax.legend(loc=loc, bbox_to_anchor=at, bbox_transform=ax.transAxes + offset, borderaxespad=0.0, **kwargs)
@@ -64,6 +66,8 @@ class _Beside:
         self.ax = ax
 
     def __call__(self, cax, renderer):
+        from matplotlib.transforms import Bbox
+
         self.ax.apply_aspect()
         box = self.ax.get_position(original=False)
         w = cax.figure.get_size_inches()[0]

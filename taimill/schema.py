@@ -147,7 +147,8 @@ SUMMARY_UNITS: dict[str, str] = {
     "wall_fraction": "1", "flight_fraction": "1", "flight_chord": "1", "wall_lag": "1",  # regime_criteria
     "regime_thresholds": "1",
     "power_per_area": "W/m²", "concentration": "1", "arc_length": "m", "angle_deg": "deg",
-    "x": "m", "y": "m", "z": "m",  # wear_hot_spot
+    "x": "m", "y": "m", "z": "m", "z_range": "m", "r_range": "m", "over_band": "1", "band_sigmas": "1",
+    "sampled_share": "1",  # wear_hot_spot
     "critical_ratio": "1", "single_ball_se": "J",
     "analysis_window": "s", "sim_seconds": "s", "wall_seconds": "s", "realtime_factor": "1", "dt": "s",
     "steps": "1", "ratio": "1", "plate_rpm": "rpm",

@@ -187,12 +187,10 @@ def _main_sink_line(m: dict) -> str:
 
 
 def _hot_spot_line(h: dict) -> str:
-    if not h.get("surface"):
-        return ""
-    where = (f"side wall at {h['angle_deg']:.0f}°, z = {h['z'] * 1e3:.1f} mm" if h["surface"] == "side"
-             else f"{h['surface']} at x = {h['x'] * 1e3:.1f}, y = {h['y'] * 1e3:.1f} mm")
-    return (f"\nwear hot spot: {where}, {h['power_per_area']:.4g} W/m² "
-            f"({h['concentration']:.3g}× the wall mean)")
+    from taimill.analysis.spatial import hot_spot_text
+
+    line = hot_spot_text(h)
+    return f"\n{line}" if line else ""
 
 
 def stderr_console():

@@ -38,6 +38,7 @@ from taimill.errors import ConfigError
 from taimill.model.files import csv_cells, read_text
 from taimill.analysis.sweep import (REGIMES, SweepAxes, axis_label, axis_scale, curves, first_value, mean_band,
                                     regime_fractions, sweep_axes, value_text, x_values)
+from taimill.figures.layout import legend_outside
 from taimill.figures.sweep_map import MAPS, map_figure, mark_critical
 from taimill.store.output import whole_file
 
@@ -53,6 +54,7 @@ FIGURES = (
 K_LABEL = "K = ω/Ω + 1 (jar spin / plate spin; |K| grows to the right)"
 REGIME_MARKERS = {"cascading": "s", "cataracting": "^", "rolling": "v"}  # any other label: "x"
 MIXED_LABEL = "mean over replicas in different regimes"
+LEGEND_WIDTH = 2.5  # inches added to a figure for the legends outside its panels
 
 
 def figure_stems(table: dict, overlay: bool = False) -> list[str]:
@@ -136,7 +138,7 @@ def sweep_figure(table, title, panels, ylabel, scale, peaks=(), measured=None, a
     import matplotlib.pyplot as plt
 
     axes = axes or sweep_axes(table)
-    fig, plots = plt.subplots(1, len(panels), figsize=(6.4 * len(panels), 4.6), squeeze=False)
+    fig, plots = plt.subplots(1, len(panels), figsize=(6.4 * len(panels) + LEGEND_WIDTH, 4.6), squeeze=False)
     groups = curves(table, axes)
     for ax, (column, panel) in zip(plots[0], panels):
         drawn: set[str] = set()
@@ -151,14 +153,15 @@ def sweep_figure(table, title, panels, ylabel, scale, peaks=(), measured=None, a
         _mixed_legend(ax, drawn)
         if axes.x == "ratio":  # landmarks of K
             _mark_peaks(ax, peaks, column, scale)
-            mark_critical(ax, table)
+            mark_critical(ax, table, axes)
         ax.set_title(panel, fontsize=10)
         _x_axis(ax, table, axes)
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
         if measured is not None:
             _overlay(ax, measured)
-        ax.legend(fontsize=8, loc="upper left")
+        else:
+            legend_outside(ax, fontsize=8)
     if any(np.isfinite(band(table, r, panels[0][0], axes.x)[2]).any() for r in groups.values()):
         title += " — mean of replicas, 95 % band"
     if any(g["bistable"] for rows in groups.values() for g in regime_groups(table, rows, axes)):
@@ -214,7 +217,8 @@ def _regime_figure(table, axes: SweepAxes | None = None):
     import matplotlib.pyplot as plt
 
     axes = axes or sweep_axes(table)
-    fig, plots = plt.subplots(1, len(REGIMES), figsize=(5.2 * len(REGIMES), 4.2), squeeze=False, sharey=True)
+    fig, plots = plt.subplots(1, len(REGIMES), figsize=(5.2 * len(REGIMES) + LEGEND_WIDTH, 4.2), squeeze=False,
+                              sharey=True)
     per_curve = {label: regime_groups(table, rows, axes) for label, rows in curves(table, axes).items()}
     any_mixed = any(g["bistable"] for groups in per_curve.values() for g in groups)
     for ax, regime in zip(plots[0], REGIMES):
@@ -227,12 +231,12 @@ def _regime_figure(table, axes: SweepAxes | None = None):
         if any_mixed:
             ax.plot([], [], "o", ms=12, mfc="none", mec="k", mew=1.2, label="replicas in different regimes")
         if axes.x == "ratio":
-            mark_critical(ax, table)
+            mark_critical(ax, table, axes)
         ax.set_title(regime, fontsize=10)
         _x_axis(ax, table, axes)
         ax.set_ylim(-0.05, 1.05)
         ax.grid(alpha=0.3)
-    plots[0][0].legend(fontsize=8, loc="best")
+    legend_outside(plots[0][-1], handles=plots[0][0].get_legend_handles_labels()[0], fontsize=8)
     plots[0][0].set_ylabel("share of the replicas")
     fig.suptitle(f"Motion regime of the replicas at each {axis_label(axes.x).split(' (')[0]} (taimill.analysis.regime)",
                  fontsize=11)
@@ -257,7 +261,8 @@ def _overlay(ax, measured):
             twin.set_ylabel(f"measured ({unit.group(1)})")
     if not twin.get_ylabel():
         twin.set_ylabel("measured")
-    twin.legend(fontsize=8, loc="upper right")
+    handles = [h for a in (ax, twin) for h in a.get_legend_handles_labels()[0]]
+    legend_outside(twin, handles=handles, fontsize=8, gap=0.7)  # right of the twin axis' labels
 
 
 def _bare(name: str) -> str:
@@ -270,7 +275,7 @@ def _save(fig, path: Path) -> Path:
 
     try:
         with whole_file(path, "figure") as part:
-            fig.savefig(part, dpi=120)
+            fig.savefig(part, dpi=120, bbox_inches="tight")  # the legends outside the panels too
     finally:
         plt.close(fig)
     return path

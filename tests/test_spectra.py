@@ -163,6 +163,14 @@ def test_outputs_events_chooses_rows_or_spectra_and_a_spectra_store_is_small(tmp
     assert a.spectra == b.spectra
     keep = lambda s: {k: v for k, v in s.items() if k not in ("wall_seconds", "realtime_factor")}  # noqa: E731
     assert keep(a.summary) == keep(b.summary)  # the summary sees every event in both modes
+    code, out, err = main("analyse", spectra, "--json")  # the event statistics from the spectra, the same numbers
+    assert code == 0, err
+    import json
+
+    got = json.loads(out)["event_estimator"]
+    assert got["events"] == a.summary["events"] and got["mean_se"] == pytest.approx(a.summary["mean_se"], rel=1e-7)
+    code, out, err = main("report", spectra, "--out", tmp_path / "report")
+    assert code == 0 and (tmp_path / "report" / "energy_spectra.png").stat().st_size > 10_000, err
     bad = tmp_path / "bad.toml"
     bad.write_text(text.replace("[outputs]", '[outputs]\nevents = "some"'))
     code, _, err = main("run", bad, "--duration", 1.0)

@@ -19,6 +19,7 @@ from taimill.analysis.run import RunAnalysis  # noqa: E402
 from taimill.analysis.spatial import MIN_EVENTS, uniform  # noqa: E402
 from taimill.figures.layout import colorbar_beside, fit_log, legend_outside, occupied  # noqa: E402
 from taimill.store.output import whole_file  # noqa: E402
+from taimill.figures.spectra import spectra_figure  # noqa: E402
 
 FORMATS = ("png", "svg", "pdf")
 MM = 1e3
@@ -321,6 +322,7 @@ FIGURES = {
     "energy": "Energy budget over time: drive work, dissipation, mechanical energy, balance error",
     "mechanisms": "Dissipated power by contact kind, class (impact or persistent) and part (normal or friction)",
     "dissipation_spectra": "Distribution of the energy dissipated per stress event, normal and by friction, per kind",
+    "energy_spectra": "Collisions per second per decade of energy: dissipated (normal, friction) and kinematic (normal, tangential)",
     "overview": "Overview of the run",
 }
 
@@ -353,6 +355,9 @@ def write_report(a: RunAnalysis, out_dir, fmt: str = "png") -> list[Path]:
     gs = fig.add_gridspec(2, 2, height_ratios=(1, 1.4))
     draw_wear_map((fig.add_subplot(gs[0, :]), fig.add_subplot(gs[1, 0]), fig.add_subplot(gs[1, 1])), a, fig)
     save("wear_map", fig)
+    if a.summary.last_spectra is not None:
+        save("energy_spectra", spectra_figure([("this run", a.summary.last_spectra)],
+                                              f"Energy spectra of the collision events, {a.t0:g}–{a.t1:g} s"))
     save("overview", overview(a))
     return paths
 

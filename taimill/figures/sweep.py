@@ -60,7 +60,7 @@ LEGEND_WIDTH = 2.5  # inches added to a figure for the legends outside its panel
 def figure_stems(table: dict, overlay: bool = False) -> list[str]:
     """The file stems report_sweep writes for this sweep table."""
     ax = sweep_axes(table)
-    return ([f[0] for f in FIGURES] + ["regimes"] + ([m[0] for m in MAPS] if ax.y else [])
+    return ([f[0] for f in FIGURES] + ["regimes", "energy_spectra"] + ([m[0] for m in MAPS] if ax.y else [])
             + (["overlay"] if overlay else []))
 
 
@@ -91,6 +91,7 @@ def report_sweep(path, out_dir, fmt: str = "png", overlay=None) -> list[Path]:
         fig = sweep_figure(table, title, panels, ylabel, scale, peaks, axes=axes)
         written.append(_save(fig, out_dir / f"{stem}.{fmt}"))
     written.append(_save(_regime_figure(table, axes), out_dir / f"regimes.{fmt}"))
+    written.append(_save(_spectra_figure(store, table), out_dir / f"energy_spectra.{fmt}"))
     if axes.y:
         for stem, column, label, scale in MAPS:
             written.append(_save(map_figure(table, column, label, scale, axes), out_dir / f"{stem}.{fmt}"))
@@ -99,6 +100,29 @@ def report_sweep(path, out_dir, fmt: str = "png", overlay=None) -> list[Path]:
                            [("mean_se", "total")], "mean SE (mJ)", 1e3, peaks, measured, axes=axes)
         written.append(_save(fig, out_dir / f"overlay.{fmt}"))
     return written
+
+
+SPECTRA_LINES = 8  # points overlaid in the energy spectra figure (evenly spread over the plan)
+
+
+def _spectra_figure(store, table):
+    """The energy spectra of up to SPECTRA_LINES points, overlaid, each labelled by its
+    swept values (taimill.figures.spectra)."""
+    from taimill.figures.spectra import spectra_figure
+
+    points = [int(i) for i in table["point"]]
+    if len(points) > SPECTRA_LINES:
+        points = [points[round(k * (len(points) - 1) / (SPECTRA_LINES - 1))] for k in range(SPECTRA_LINES)]
+    items = []
+    for i in points:
+        sp = store.spectra(i)
+        if sp is not None:
+            values = store.plan[i].get("values", {})
+            label = ", ".join(f"{k} {v:g}" if isinstance(v, float) else f"{k} {v}" for k, v in values.items()
+                              if k not in ("replica",)) or f"point {i}"
+            items.append((label, sp))
+    shown = "" if len(points) == len(table["point"]) else f" ({len(items)} of {len(table['point'])} points)"
+    return spectra_figure(items, f"Energy spectra of the collision events{shown}")
 
 
 def store_axes(store, table) -> SweepAxes:

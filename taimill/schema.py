@@ -168,7 +168,7 @@ SUMMARY_UNITS: dict[str, str] = {
     # at or above each energy, keyed by the energy in J) and their sweep columns
     "softening": "1",  # contact stiffness divided by it (a softened run)
     # the dose (taimill.outcome.dose): the jar's powder, the dissipated power per gram, the shear view
-    "powder_mass_g": "g", "ball_to_powder": "1",
+    "powder_mass_g": "g", "ball_to_powder": "1", "rate_above_per_g": "1/(s g)",
     **{f"specific_power{s}_W_per_g": "W/g" for s in ("", "_impact", "_persistent", "_normal", "_shear")},
     "shear_power_persistent_W": "W", "shear_share": "1", "shear_power_persistent_wall_W_per_m2": "W/m²",
     "window": "s", "stress_un": "m/s", "energy": "J", "mean": "J", "median": "J", "p90": "J", "rate_above": "1/s",

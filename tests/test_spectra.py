@@ -175,3 +175,19 @@ def test_outputs_events_chooses_rows_or_spectra_and_a_spectra_store_is_small(tmp
     bad.write_text(text.replace("[outputs]", '[outputs]\nevents = "some"'))
     code, _, err = main("run", bad, "--duration", 1.0)
     assert code == 2 and "outputs.events" in err and "rows, spectra" in err
+
+
+def test_a_run_with_powder_reports_its_dose_per_gram_and_the_shear_view():
+    import json
+
+    code, out, err = main("run", "p4-cy-steel", "--duration", 1.5, "--analysis-start", 0.5, "--powder-mass", 5, "--json")
+    assert code == 0, err
+    s = json.loads(out)
+    assert s["powder_mass_g"] == 5.0
+    assert s["specific_power_W_per_g"] == pytest.approx(s["dissipated_power"] / 5.0)
+    assert s["specific_power_impact_W_per_g"] == pytest.approx(s["dissipated_power_impact"] / 5.0)
+    rate = s["spectra"]["dissipated_normal"]["rate_above"]["0.001"]
+    assert rate > 0 and s["rate_above_per_g"]["dissipated_normal"]["0.001"] == pytest.approx(rate / 5.0)
+    assert 0 <= s["shear_share"] <= 1 and s["units"]["shear_power_persistent_wall_W_per_m2"] == "W/m²"
+    code, out, _ = main("run", "p4-cy-steel", "--duration", 1.5, "--analysis-start", 0.5, "--json")
+    assert "specific_power_W_per_g" not in json.loads(out)  # no powder, no dose

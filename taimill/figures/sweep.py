@@ -50,6 +50,10 @@ FIGURES = (
     ("impact_power", "Impact power E_I/τ, eq 3.8, one jar (thesis Figs 3.7a, 4.13)", [("impact_power", "total")], "impact power (W)", 1.0),
     ("randomness", "Randomness index 1/σ of g(r), eq 3.9 (thesis Fig 3.8)", [("randomness_index", "1/σ")], "1/σ", 1.0),
     ("normal_fraction", "Normal share of the stress energy", [("normal_fraction", "SE_n / SE")], "normal fraction", 1.0),
+    ("dissipation", "Dissipated power by class: impacts and persistent contacts (normal and friction work), one jar",
+     [("dissipated_power_impact", "impacts"), ("dissipated_power_persistent", "persistent contacts")], "dissipated power (W)", 1.0),
+    ("shear", "Gentle / shear view: friction power of persistent contacts per m² of jar wall",
+     [("shear_power_persistent_wall_W_per_m2", "persistent friction on the wall")], "power per wall area (W/m²)", 1.0),
 )
 K_LABEL = "K = ω/Ω + 1 (jar spin / plate spin; |K| grows to the right)"
 REGIME_MARKERS = {"cascading": "s", "cataracting": "^", "rolling": "v"}  # any other label: "x"

@@ -40,6 +40,11 @@ def dose_keys(summary: dict, config: dict) -> dict:
     for key, suffix in SPLITS.items():
         if isinstance(summary.get(key), (int, float)):
             out[f"specific_power{suffix}_W_per_g"] = summary[key] / grams
+    spectra = summary.get("spectra") or {}
+    per_g = {m: {e: r / grams for e, r in d["rate_above"].items()} for m, d in spectra.items()
+             if isinstance(d, dict) and isinstance(d.get("rate_above"), dict)}
+    if per_g:  # stress events per second and gram at or above each energy (J) of the summary's spectra
+        out["rate_above_per_g"] = per_g
     return out
 
 

@@ -1,0 +1,206 @@
+"""`taimill design PRESET --out DIR --objective KEY:max …`: search a jar family for the
+objective on the preset's mill, speeds, media and charge (docs/designer.md). The study
+lives in DIR (SQLite); the same command resumes it."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+from taimill.cli.common import DEFAULT_PRESET, LAW_HELP, PRESET_HELP, integer, name_text, number, path_text
+from taimill.errors import ConfigError
+
+THESIS_JARS = "HM,1L,3L,T,CY"
+
+
+def register(sub) -> None:
+    d = sub.add_parser("design", help="search jar shapes (lifters, flats, fillets) for an objective of the run summary")
+    d.add_argument("preset", type=path_text, nargs="?", default=DEFAULT_PRESET, help=PRESET_HELP)
+    d.add_argument("--out", required=True, help="study folder (created; an existing study there is resumed)")
+    d.add_argument("--family", default="lifters", help="jar family: lifters, flats or mixed (default lifters)")
+    d.add_argument("--objective", action="append", metavar="KEY:max|min",
+                   help="a number of the run summary to maximise or minimise, e.g. impact_power_normal:max; "
+                        "give it twice or more for a Pareto front (NSGA-II); one objective uses TPE")
+    d.add_argument("--floor", action="append", default=[], metavar="KEY=VALUE",
+                   help="a design is feasible only if this figure's mean is at least VALUE, e.g. impact_power=2.5")
+    d.add_argument("--ratio", metavar="LO:HI | K", help="K searched in [LO, HI], or one K (default: the preset's)")
+    d.add_argument("--trials", type=integer, default=40, help="designs to evaluate (default 40)")
+    d.add_argument("--batch", type=integer, default=8,
+                   help="designs asked and run together as one sweep (NSGA-II: the population; default 8)")
+    d.add_argument("--replicas", type=integer, default=3, help="runs per design with seeds seed … seed+R-1 (default 3)")
+    d.add_argument("--seed", type=integer, default=1, help="study seed: the sampler's and the first replica's (default 1)")
+    d.add_argument("--tolerance", type=number, default=0.3,
+                   help="allowed |V/V_nominal - 1|, nominal = the preset jar's volume (default 0.3: the thesis' T is 0.29 below CY)")
+    d.add_argument("--min-wall", type=number, default=1.0, metavar="MM",
+                   help="thinnest insert (flat or lifter) a maker accepts, mm (default 1)")
+    d.add_argument("--fix", action="append", default=[], metavar="NAME=VALUE", help="hold a family parameter fixed, e.g. n_lifters=3")
+    d.add_argument("--references", default=THESIS_JARS, help=f"reference jars run by the same protocol (default {THESIS_JARS}; 'none')")
+    d.add_argument("--reference-ratios", metavar="A:B:STEP | K1,K2,…",
+                   help="K values the references run at, each taken at its best (default: 5 values spanning --ratio)")
+    d.add_argument("--confirm", type=number, metavar="SECONDS",
+                   help="afterwards run design 1 and the references at their best K this long (same replicas)")
+    d.add_argument("--keep", type=integer, default=3, help="best designs written to DIR/best (one objective; default 3)")
+    d.add_argument("--workers", type=integer, help="local worker processes (default: one per core)")
+    d.add_argument("--scheduler", metavar="ADDRESS", type=name_text, help="dask.distributed scheduler, e.g. tcp://host:8786")
+    d.add_argument("--json", action="store_true", help="print the summary as JSON instead of markdown")
+    o = d.add_argument_group("run overrides (every run)")
+    o.add_argument("--duration", type=number, default=4.0, help="simulated seconds per short run (default 4)")
+    o.add_argument("--analysis-start", type=number, default=1.0, help="start of the analysis window, s (default 1: after the 1 s start-up)")
+    o.add_argument("--plate-rpm", type=number, help="Ω (rpm)")
+    o.add_argument("--pair", type=name_text, help="friction pair")
+    o.add_argument("--balls", type=integer, help="number of balls")
+    o.add_argument("--ball-material", type=name_text, help="ball material")
+    o.add_argument("--ball-diameter", type=number, metavar="MM", help="ball diameter (mm)")
+    o.add_argument("--mill", type=name_text, help="planetary mill (name or mill file)")
+    o.add_argument("--dt", help="time step in s, or 'auto'")
+    o.add_argument("--law", help=LAW_HELP)
+    d.set_defaults(fn=cmd_design)
+
+
+def _ratio(text: str | None, preset: str, overrides: dict) -> tuple[float, float]:
+    if text is None:
+        from taimill.model.preset import load_preset
+
+        k = load_preset(preset, overrides).drive.ratio
+        return k, k
+    parts = text.split(":")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) not in (1, 2) or not all(map(math.isfinite, values)):
+        raise ConfigError("command line", "--ratio", text, "LO:HI (K searched between) or one K, finite numbers")
+    lo, hi = min(values), max(values)
+    return lo, hi
+
+
+def _fixed(items: list[str]) -> dict:
+    out = {}
+    for text in items:
+        key, sep, value = text.partition("=")
+        try:
+            out[key.strip()] = float(value)
+        except ValueError:
+            sep = ""
+        if not sep:
+            raise ConfigError("command line", "--fix", text, "NAME=VALUE with a number, e.g. n_lifters=3")
+    return out
+
+
+def settings_of(a):
+    from taimill.design import families
+    from taimill.design.protocol import parse_floor, parse_objective
+    from taimill.design.study import Settings
+
+    def limit(option, value, lo, hi):
+        if not lo <= value <= hi:
+            raise ConfigError("command line", option, value, f"allowed range [{lo:g}, {hi:g}]")
+
+    limit("--trials", a.trials, 1, 100_000)
+    limit("--batch", a.batch, 1, 1000)
+    limit("--replicas", a.replicas, 1, 100)
+    limit("--seed", a.seed, 0, 2**31 - 1)
+    limit("--keep", a.keep, 1, 1000)
+    if not 0 < a.tolerance <= 1:
+        raise ConfigError("command line", "--tolerance", a.tolerance, "allowed range (0, 1]: a fraction of the nominal volume")
+    limit("--min-wall", a.min_wall, 0, 1000)
+    if a.scheduler and a.workers is not None:
+        raise ConfigError("command line", "--workers", a.workers, "not used with --scheduler (the cluster's workers run the runs)")
+    if a.workers is not None:
+        limit("--workers", a.workers, 1, 256)
+    families.family(a.family)
+    objectives = [parse_objective(t) for t in (a.objective or ["impact_power_normal:max"])]
+    if len({o.key for o in objectives}) < len(objectives):
+        raise ConfigError("command line", "--objective", ",".join(a.objective), "an objective is repeated")
+    floors = dict(parse_floor(t) for t in a.floor)
+    preset = str(Path(a.preset).resolve()) if a.preset.endswith(".toml") else a.preset
+    from taimill.cli.common import dt_option
+
+    overrides = {k: v for k, v in {"duration": a.duration, "analysis_start": a.analysis_start, "plate_rpm": a.plate_rpm,
+                                   "pair": a.pair, "balls.count": a.balls, "balls.material": a.ball_material,
+                                   "balls.diameter_mm": a.ball_diameter, "mill": a.mill, "dt": dt_option(a.dt),
+                                   "law": a.law}.items() if v is not None}
+    ratio = _ratio(a.ratio, preset, overrides)
+    return Settings(preset, a.family, objectives, floors, ratio, a.replicas, a.seed, a.batch, overrides,
+                    a.tolerance, a.min_wall, _fixed(a.fix))
+
+
+def _reference_ratios(a, ratio) -> list[float]:
+    from taimill.runs.sweep import parse_values
+
+    if a.reference_ratios:
+        return parse_values(a.reference_ratios, "--reference-ratios")
+    lo, hi = ratio
+    if lo == hi:
+        return [lo]
+    return [round(hi - i * (hi - lo) / 4, 10) for i in range(5)]
+
+
+def _check_out(out: Path) -> None:
+    if out.exists() and not out.is_dir():
+        raise ConfigError("command line", "--out", str(out), "is a file; give a study folder")
+    if out.is_dir() and any(out.iterdir()) and not (out / "study.db").exists():
+        raise ConfigError("command line", "--out", str(out), "is a folder with other files and no study.db; give a new or a study folder")
+
+
+def cmd_design(a) -> int:
+    from taimill.design import report
+    from taimill.design.study import Study, evaluate_references
+
+    s = settings_of(a)
+    refs = [] if a.references.strip().lower() == "none" else [r.strip() for r in a.references.split(",") if r.strip()]
+    from taimill.model.jars import load_jar
+
+    for r in refs:
+        try:
+            load_jar(r, "command line")
+        except ConfigError as err:
+            raise ConfigError("command line", "--references", r, err.allowed) from None
+    ratios = _reference_ratios(a, s.ratio)
+    out = Path(a.out)
+    _check_out(out)
+
+    def log(text):
+        print(text, file=sys.stderr, flush=True)
+
+    study = Study(out, s, workers=a.workers, scheduler=a.scheduler, log=log)
+    references = evaluate_references(study, refs, ratios)
+    study.run(a.trials)
+    res = report.results(study, references, a.keep)
+    if a.confirm and res["best"]:
+        res["confirmation"] = confirm(study, res, a.confirm)
+    report.write_all(study, res)
+    if a.json:
+        print(json.dumps(res, default=float))
+    else:
+        print((out / "summary.md").read_text(), end="")
+        print(f"jar files: {out / 'best'}; report page: {out / 'report.png'}")
+    return 0
+
+
+def confirm(study, res: dict, duration: float) -> dict:
+    """Design 1 and the references at their best K, in runs `duration` long (analysis
+    from the preset's own start, the thesis' 4 s for its presets)."""
+    from taimill.design import report
+    from taimill.design.protocol import Protocol, evaluate, figures
+    from taimill.model.preset import load_preset
+
+    start = load_preset(study.s.preset, {k: v for k, v in study.s.overrides.items()
+                                         if k not in ("duration", "analysis_start")}).analysis_start
+    if not 0 <= start < duration:
+        raise ConfigError("command line", "--confirm", duration, f"must exceed the preset's analysis start {start:g} s")
+    protocol = Protocol(study.s.preset, study.s.overrides | {"duration": duration, "analysis_start": start},
+                        study.s.replicas, study.s.seed)
+    best = res["best"][0]
+    cands = {"design 1": (best["jar"], best["ratio"])} | {n: (n, r["ratio"]) for n, r in res["references"].items()}
+    study.log(f"design: confirmation runs of {duration:g} s: {', '.join(cands)}")
+    results = evaluate(protocol, list(cands.values()), workers=study.workers, scheduler=study.scheduler)
+    jars = {n: {"ratio": k, "figures": {key: list(v) for key, v in figures(r, study.s.objectives, study.s.floors).items()}}
+            for (n, (_, k)), r in zip(cands.items(), results)}
+    o = study.s.objectives[0]
+    comparison = {n: dict(zip(("beats", "margin"), report.beats(jars["design 1"], ref, o)))
+                  for n, ref in jars.items() if n != "design 1"}
+    return {"duration": duration, "analysis_start": start, "replicas": study.s.replicas, "jars": jars,
+            "comparison": comparison}

@@ -1,0 +1,244 @@
+"""A design study's results: the best designs (one objective) or the Pareto set
+(several) as jar files ready to run, the reference jars at their best K, a JSON and a
+markdown summary, and the report page (PNG): the profiles side by side, the objective
+history and the Pareto front (or, for one objective, the objective against K).
+
+Every figure is the mean over the replicas ± the replicas' sample standard deviation.
+A design "beats" a reference when its band lies wholly beyond the reference's:
+|mean_d − mean_r| > s_d + s_r in the objective's direction."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from taimill.design import families
+
+MM = 1e3
+
+
+def _better(a: float, b: float, direction: str) -> bool:
+    return a > b if direction == "maximize" else a < b
+
+
+def trial_rows(study) -> list[dict]:
+    """The evaluated trials: number, params, K, figures {key: [mean, s, values]}, feasible, state."""
+    from taimill.design.study import feasible
+
+    rows = []
+    for t in study.evaluated():
+        design, ratio = study.design_of(t.params)
+        rows.append({"trial": t.number, "params": design, "ratio": ratio, "figures": t.user_attrs["figures"],
+                     "feasible": feasible(t) and t.state.name == "COMPLETE", "state": t.state.name,
+                     "jar": str(study.jar_path(t.number))})
+    return rows
+
+
+def pareto(rows: list[dict], objectives) -> list[dict]:
+    """The feasible rows no other feasible row dominates (on the objectives' means)."""
+    ok = [r for r in rows if r["feasible"]]
+
+    def key(r):
+        return [r["figures"][o.key][0] * (1 if o.direction == "maximize" else -1) for o in objectives]
+
+    front = []
+    for r in ok:
+        a = key(r)
+        if not any(all(x >= y for x, y in zip(key(q), a)) and key(q) != a for q in ok):
+            front.append(r)
+    return sorted(front, key=lambda r: -key(r)[0])
+
+
+def best_references(references: dict, objective) -> dict:
+    """{name: {"ratio": K, "figures": …}} at each reference's best K for `objective`."""
+    out = {}
+    for name, by_k in references.items():
+        k = max(by_k, key=lambda k: by_k[k][objective.key][0] * (1 if objective.direction == "maximize" else -1)
+                if math.isfinite(by_k[k][objective.key][0]) else -math.inf)
+        out[name] = {"ratio": float(k), "figures": by_k[k]}
+    return out
+
+
+def beats(design: dict, ref: dict, objective) -> tuple[bool, float]:
+    """(whether the design's band lies beyond the reference's, the margin in units of s_d + s_r)."""
+    md, sd, _ = design["figures"][objective.key]
+    mr, sr, _ = ref["figures"][objective.key]
+    diff = (md - mr) * (1 if objective.direction == "maximize" else -1)
+    spread = sd + sr
+    return bool(diff > spread), diff / spread if spread > 0 else math.inf
+
+
+def results(study, references: dict, keep: int = 3) -> dict:
+    """The study's outcome as a JSON-ready dict (also what summary.json holds)."""
+    objs = study.s.objectives
+    rows = trial_rows(study)
+    if len(objs) == 1:
+        o = objs[0]
+        ok = sorted((r for r in rows if r["feasible"]), key=lambda r: r["figures"][o.key][0],
+                    reverse=o.direction == "maximize")
+        best = ok[:keep]
+    else:
+        best = pareto(rows, objs)
+    refs = best_references(references, objs[0]) if references else {}
+    comparison = {}
+    if best and refs:
+        comparison = {n: dict(zip(("beats", "margin"), beats(best[0], r, objs[0]))) for n, r in refs.items()}
+    pruned = [t for t in study.study.get_trials(deepcopy=False) if t.user_attrs.get("violations")]
+    return {"objectives": [o.label for o in objs], "floors": study.s.floors, "family": study.s.family,
+            "spread": "sample standard deviation of the replicas (ddof 1)",
+            "settings": study.s.identity(), "evaluated": len(rows), "pruned": len(pruned),
+            "runs": len(rows) * study.s.replicas + sum(len(v) for v in references.values()) * study.s.replicas,
+            "best": best, "references": refs, "reference_grid": references, "comparison": comparison,
+            "history": [{"trial": r["trial"], "ratio": r["ratio"], "feasible": r["feasible"],
+                         **{o.key: r["figures"][o.key][0] for o in objs}} for r in rows]}
+
+
+def write_best(study, res: dict) -> list[Path]:
+    """The best designs (or the Pareto set) as jar files in best/, with a comment block:
+    study, parameters, K, objective values ± spread."""
+    folder = study.out / "best"
+    folder.mkdir(exist_ok=True)
+    for old in folder.glob("*.toml"):
+        old.unlink()
+    paths = []
+    for i, r in enumerate(res["best"], 1):
+        figs = [f"{k} = {m:.5g} ± {s:.2g} {study_unit(k)} (mean ± sample s.d. of {len(v)} replicas)"
+                for k, (m, s, v) in r["figures"].items()]
+        path = folder / f"design-{i}.toml"
+        extra = [f"Run it: taimill run {study.s.preset} --jar {path.name} --ratio {r['ratio']:.6g}", *figs]
+        path = study.write_jar(r["trial"], {**r["params"], "ratio": r["ratio"]}, extra, path)
+        r["file"] = str(path)
+        paths.append(path)
+    return paths
+
+
+def study_unit(key: str) -> str:
+    from taimill.schema import SUMMARY_UNITS
+
+    return SUMMARY_UNITS.get(key.rpartition(".")[2], "")
+
+
+def _fmt(fig) -> str:
+    m, s, _ = fig
+    return f"{m:.4g} ± {s:.2g}"
+
+
+def write_markdown(res: dict, path: Path) -> None:
+    objs = res["objectives"]
+    keys = [o.rpartition(":")[0] for o in objs]
+    lines = [f"# Jar design study: {', '.join(objs)}", "",
+             f"Family `{res['family']}`; {res['evaluated']} designs evaluated, {res['pruned']} pruned by the "
+             f"constraints before any run; {res['runs']} short runs. Figures: mean ± {res['spread']}.", ""]
+    if res["floors"]:
+        lines += ["Floors: " + ", ".join(f"{k} ≥ {v:g}" for k, v in res["floors"].items()), ""]
+    lines += ["| design | K | " + " | ".join(keys) + " | jar file |", "|---|---|" + "---|" * len(keys) + "---|"]
+    for i, r in enumerate(res["best"], 1):
+        lines.append(f"| design {i} (trial {r['trial']}): {families.describe(r['params'])} | {r['ratio']:.3g} | "
+                     + " | ".join(_fmt(r["figures"][k]) for k in keys) + f" | {Path(r.get('file', r['jar'])).name} |")
+    for name, ref in res["references"].items():
+        lines.append(f"| reference {name} | {ref['ratio']:.3g} | " + " | ".join(_fmt(ref["figures"][k]) for k in keys)
+                     + " | (bundled) |")
+    if res["comparison"]:
+        lines += ["", f"Design 1 against each reference on {objs[0]} (beats: the bands mean ± s do not overlap):", ""]
+        lines += [f"- {n}: {'beats' if c['beats'] else 'does not beat'} it, margin {c['margin']:.2f} × (s_d + s_r)"
+                  for n, c in res["comparison"].items()]
+    if res.get("confirmation"):
+        c = res["confirmation"]
+        lines += ["", f"Confirmation ({c['duration']:g} s runs, analysis from {c['analysis_start']:g} s, "
+                  f"{c['replicas']} replicas):", ""]
+        lines += [f"- {n} at K {v['ratio']:.3g}: " + ", ".join(f"{k} {_fmt(f)}" for k, f in v["figures"].items())
+                  for n, v in c["jars"].items()]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def draw(study, res: dict, path: Path) -> Path:
+    """The report page: profiles of the best designs and the references; objective
+    history (references as bands); Pareto front (several objectives) or objective vs K."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from taimill.model.jars import load_jar
+
+    objs = study.s.objectives
+    o = objs[0]
+    jars = [(f"design {i} (trial {r['trial']})\nK {r['ratio']:.3g}: {_fmt(r['figures'][o.key])}", r.get("file", r["jar"]))
+            for i, r in enumerate(res["best"][:5], 1)]
+    jars += [(f"{n}\nK {ref['ratio']:.3g}: {_fmt(ref['figures'][o.key])}", n) for n, ref in res["references"].items()]
+    cols = max(len(jars), 1)
+    fig = plt.figure(figsize=(max(12, 2.4 * cols), 9), constrained_layout=True)
+    grid = fig.add_gridspec(2, cols, height_ratios=[1, 1.5])
+    fig.suptitle(f"Jar design ({study.s.family} family): {', '.join(x.label for x in objs)}; "
+                 f"{res['evaluated']} designs, {res['pruned']} pruned; mean ± replicas' s.d.")
+    for i, (title, name) in enumerate(jars):
+        ax = fig.add_subplot(grid[0, i])
+        outline = load_jar(name, "design").profile.outline * MM
+        ax.fill(*np.vstack([outline, outline[:1]]).T, color="tab:blue" if title.startswith("design") else "0.8",
+                alpha=0.6)
+        ax.plot(*np.vstack([outline, outline[:1]]).T, color="k", lw=1)
+        lim = 1.1 * study.limits.radius * MM
+        ax.set(xlim=(-lim, lim), ylim=(-lim, lim), aspect="equal")
+        ax.set_title(title, fontsize=8)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    half = max(cols // 2, 1)
+    ax = fig.add_subplot(grid[1, :half])
+    hist = res["history"]
+    n = [h["trial"] for h in hist]
+    y = [h[o.key] for h in hist]
+    ax.scatter(n, y, s=10, c=["tab:blue" if h["feasible"] else "0.6" for h in hist], label="designs (grey: infeasible)")
+    running, best = [], None
+    for h in hist:
+        if h["feasible"] and math.isfinite(h[o.key]) and (best is None or _better(h[o.key], best, o.direction)):
+            best = h[o.key]
+        running.append(best if best is not None else math.nan)
+    ax.plot(n, running, color="tab:red", label="best so far")
+    for j, (name, ref) in enumerate(res["references"].items()):
+        m, s, _ = ref["figures"][o.key]
+        ax.axhspan(m - s, m + s, color=f"C{j + 2}", alpha=0.2)
+        ax.axhline(m, color=f"C{j + 2}", lw=1, label=f"{name} (K {ref['ratio']:.3g})")
+    ax.set_xlabel("trial")
+    ax.set_ylabel(f"{o.key} ({study_unit(o.key)})")
+    ax.set_title("objective history")
+    ax.legend(fontsize=7)
+    ax = fig.add_subplot(grid[1, half:])
+    if len(objs) > 1:
+        a, b = objs[0].key, objs[1].key
+        ax.scatter([h[a] for h in hist], [h[b] for h in hist], s=10, color="0.6", label="designs")
+        front = sorted(res["best"], key=lambda r: r["figures"][a][0])
+        ax.errorbar([r["figures"][a][0] for r in front], [r["figures"][b][0] for r in front],
+                    xerr=[r["figures"][a][1] for r in front], yerr=[r["figures"][b][1] for r in front],
+                    color="tab:red", marker="o", label="Pareto front")
+        for j, (name, by_k) in enumerate(res["reference_grid"].items()):
+            ax.scatter([f[a][0] for f in by_k.values()], [f[b][0] for f in by_k.values()], marker="s",
+                       color=f"C{j + 2}", label=f"{name} (each K)")
+        ax.set_xlabel(f"{a} ({study_unit(a)})")
+        ax.set_ylabel(f"{b} ({study_unit(b)})")
+        ax.set_title("Pareto front")
+    else:
+        ax.scatter([h["ratio"] for h in hist], y, s=10, color="tab:blue", label="designs")
+        for j, (name, by_k) in enumerate(res["reference_grid"].items()):
+            ks = sorted(by_k, key=float)
+            ax.errorbar([float(k) for k in ks], [by_k[k][o.key][0] for k in ks], yerr=[by_k[k][o.key][1] for k in ks],
+                        color=f"C{j + 2}", marker="s", ms=3, label=name)
+        ax.set_xlabel("K = ω/Ω + 1")
+        ax.set_ylabel(f"{o.key} ({study_unit(o.key)})")
+        ax.set_title("objective against K")
+    ax.legend(fontsize=7)
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_all(study, res: dict) -> dict:
+    """best/*.toml, summary.json, summary.md and report.png in the study folder."""
+    write_best(study, res)
+    (study.out / "summary.json").write_text(json.dumps(res, indent=1, default=float))
+    write_markdown(res, study.out / "summary.md")
+    draw(study, res, study.out / "report.png")
+    return res

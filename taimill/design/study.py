@@ -3,7 +3,7 @@ study folder, evaluated in batches on the sweep machinery (taimill.design.protoc
 
 Determinism and resume. Optuna's samplers keep their random state in memory only, so
 a restarted study would draw other designs. Here the sampler is rebuilt before every
-ask, seeded from (study seed, number of trials stored), so trial n's parameters are a
+ask, seeded from (study seed, number of live trials stored), so the n-th design is a
 function of the stored history and the seed. A batch is planned in the study's
 `batch` attribute (its first trial and size) before its first ask; its trials are
 asked one after another (a candidate breaking a constraint is told PRUNED at once, its
@@ -11,7 +11,10 @@ violations kept in the trial), then run as one sweep and told in trial order. Af
 kill −9 the same command finds the unfinished batch: it asks the trials still missing
 (only if none was told yet), re-evaluates the trials left RUNNING with their stored
 parameters (the runs are seeded and bit-stable, so they give the values the lost
-evaluation would have) and tells them in order. An interrupted and resumed study
+evaluation would have) and tells them in order. A trial the kill caught while it was
+being asked (its parameters possibly incomplete, its constraints not yet checked) is
+marked `abandoned`, failed, and asked again: the seed counts live trials only, so the
+new ask draws the same design (trial numbers shift by one; the designs do not). An interrupted and resumed study
 therefore ends with the same designs as an uninterrupted one with the same seed.
 """
 
@@ -167,20 +170,26 @@ class Study:
         def mine():
             return [t for t in self.study.get_trials(deepcopy=False) if t.number >= plan["first"]]
 
-        # a trial left RUNNING before its constraints were checked is checked again here
         for t in mine():
-            if t.state == TrialState.RUNNING and "violations" not in t.user_attrs:
-                self._checked(t.number, t.params)
-            elif t.state == TrialState.RUNNING and t.user_attrs["violations"]:
+            if t.state != TrialState.RUNNING:
+                continue
+            if "violations" not in t.user_attrs or t.user_attrs.get("abandoned"):
+                # killed while it was asked: its parameters may be incomplete; fail it and ask
+                # again, with the seed of the same count of live trials (the same design)
+                self.study._storage.set_trial_user_attr(t._trial_id, "abandoned", True)
+                self.study.tell(t.number, state=_state("FAIL"))
+            elif t.user_attrs["violations"]:
                 self.study.tell(t.number, state=_state("PRUNED"))
+            else:
+                self.write_jar(t.number, t.params)
         if not any(t.state == TrialState.COMPLETE or "figures" in t.user_attrs for t in mine()):
             while True:
-                ts = mine()
+                ts = _live(mine())
                 wanted = sum(not t.user_attrs.get("violations") for t in ts)
                 pruned = len(ts) - wanted
                 if wanted >= plan["size"] or pruned >= MAX_PRUNED * plan["size"]:
                     break
-                self.study.sampler = self._sampler(len(self.study.get_trials(deepcopy=False)))
+                self.study.sampler = self._sampler(len(_live(self.study.get_trials(deepcopy=False))))
                 trial = self.study.ask(self.distributions())
                 self._checked(trial.number, trial.params)
         running = [t for t in mine() if t.state == TrialState.RUNNING]
@@ -216,6 +225,11 @@ class Study:
             self.study.tell(number, values)
         else:
             self.study.tell(number, state=_state("FAIL"))
+
+
+def _live(trials) -> list:
+    """The trials not abandoned (asked when a kill −9 came, then failed and asked again)."""
+    return [t for t in trials if not t.user_attrs.get("abandoned")]
 
 
 def _state(name: str):

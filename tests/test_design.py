@@ -227,3 +227,27 @@ def test_a_designed_jar_passes_the_checks_draws_and_exports_to_liggghts(tiny_stu
     assert {"in.taimill", "run.sh", "jar.stl", "start.data"} <= files, files
     facets = (case / "jar.stl").read_text().count("facet normal")
     assert facets > 100  # the designed profile, not a primitive cylinder
+
+
+def test_several_objectives_give_a_pareto_set_and_a_floor_is_a_constraint(tmp_path):
+    out = tmp_path / "pareto"
+    code, stdout, err = main("design", "presets/p4-cy-steel.toml", "--out", out, "--family", "flats",
+                             "--objective", "impact_power_normal:max", "--objective", "normal_fraction:max",
+                             "--floor", "impact_power=0", "--trials", 4, "--batch", 2, "--replicas", 2,
+                             "--duration", 1.2, "--analysis-start", 1.0, "--ratio=-2.6", "--references", "none",
+                             "--workers", 2, "--json")
+    assert code == 0, err
+    res = json.loads(stdout)
+    front = res["best"]
+    assert front and len(list((out / "best").glob("design-*.toml"))) == len(front)
+    for a in front:  # no design of the set is dominated by another
+        for b in front:
+            fa, fb = a["figures"], b["figures"]
+            assert not (fb["impact_power_normal"][0] > fa["impact_power_normal"][0]
+                        and fb["normal_fraction"][0] > fa["normal_fraction"][0])
+    import optuna
+
+    study = optuna.load_study(study_name="design", storage=f"sqlite:///{out / 'study.db'}")
+    done = [t for t in study.trials if t.state.name == "COMPLETE"]
+    assert done and all("floor impact_power" in t.constraints for t in done)
+    assert (out / "report.png").stat().st_size > 0

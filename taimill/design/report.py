@@ -196,7 +196,7 @@ def draw(study, res: dict, path: Path) -> Path:
         if h["feasible"] and math.isfinite(h[o.key]) and (best is None or _better(h[o.key], best, o.direction)):
             best = h[o.key]
         running.append(best if best is not None else math.nan)
-    ax.plot(n, running, color="tab:red", label="best so far")
+    ax.plot(n, running, color="k", label="best so far")
     for j, (name, ref) in enumerate(res["references"].items()):
         m, s, _ = ref["figures"][o.key]
         ax.axhspan(m - s, m + s, color=f"C{j + 2}", alpha=0.2)

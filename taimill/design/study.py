@@ -96,10 +96,9 @@ class Study:
         import optuna
 
         seed = (self.s.seed * 1_000_003 + n) % 2**32
-        cf = _constraints if self.s.floors else None
         if len(self.s.objectives) > 1:
-            return optuna.samplers.NSGAIISampler(seed=seed, population_size=max(2, self.s.batch), constraints_func=cf)
-        return optuna.samplers.TPESampler(seed=seed, constraints_func=cf)
+            return optuna.samplers.NSGAIISampler(seed=seed, population_size=max(2, self.s.batch))
+        return optuna.samplers.TPESampler(seed=seed)
 
     def distributions(self) -> dict:
         from optuna.distributions import FloatDistribution, IntDistribution
@@ -198,7 +197,6 @@ class Study:
                      f"({len(running)} jars × {self.s.replicas} replicas)")
             cands = [(str(self.jar_path(t.number)), self.design_of(t.params)[1]) for t in running]
             results = evaluate(self.protocol, cands, workers=self.workers, scheduler=self.scheduler, progress=progress)
-            self.study.sampler = self._sampler(running[0].number)  # its after_trial stores the floors' constraints
             for t, summaries in zip(running, results):
                 self._tell(t.number, summaries)
         self.study.set_user_attr("batch", plan | {"done": True})
@@ -215,11 +213,18 @@ class Study:
         return self.study._storage.get_trial_id_from_study_id_trial_number(self.study._study_id, number)
 
     def _tell(self, number: int, summaries: list[dict]) -> None:
+        import optuna
+
         figs = figures(summaries, self.s.objectives, self.s.floors)
         storage, tid = self.study._storage, self._id(number)
         storage.set_trial_user_attr(tid, "figures", {k: [m, s, v] for k, (m, s, v) in figs.items()})
         storage.set_trial_user_attr(tid, "status", sorted({s["status"] for s in summaries}))
-        storage.set_trial_user_attr(tid, "floor_excess", [lo - figs[k][0] for k, lo in self.s.floors.items()])
+        excess = [lo - figs[k][0] for k, lo in self.s.floors.items()]
+        storage.set_trial_user_attr(tid, "floor_excess", excess)
+        trial = optuna.trial.Trial(self.study, tid)
+        for key, x in zip(self.s.floors, excess):  # ≤ 0 feasible; the samplers read it from the trial
+            if f"constraints:floor {key}" not in storage.get_trial_system_attrs(tid):
+                trial.set_constraint(f"floor {key}", x if math.isfinite(x) else 1.0)
         values = [figs[o.key][0] for o in self.s.objectives]
         if all(math.isfinite(v) for v in values) and all(s["status"] == "complete" for s in summaries):
             self.study.tell(number, values)
@@ -236,11 +241,6 @@ def _state(name: str):
     from optuna.trial import TrialState
 
     return getattr(TrialState, name)
-
-
-def _constraints(trial) -> list[float]:
-    """Optuna's constraint values (≤ 0: feasible): floor − mean for each --floor."""
-    return [float(x) if math.isfinite(x) else 1.0 for x in trial.user_attrs.get("floor_excess", [])]
 
 
 def feasible(trial) -> bool:

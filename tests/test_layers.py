@@ -41,7 +41,8 @@ LAYERS: dict[str, set[str]] = {
     "runs": NEUTRAL | {"model", "physics", "store", "analysis", "outcome"},
     "calibration": NEUTRAL | {"model", "physics", "store", "analysis", "runs"},
     "tui": NEUTRAL | {"model", "store", "analysis", "figures", "recording", "runs"},
-    "cli": NEUTRAL | {"model", "store", "analysis", "figures", "recording", "runs", "calibration", "tui", "bridge", "outcome"},
+    "design": NEUTRAL | {"model", "store", "analysis", "figures", "runs"},
+    "cli": NEUTRAL | {"model", "store", "analysis", "figures", "recording", "runs", "calibration", "tui", "bridge", "outcome", "design"},
 }
 # The recording takes its colour tables from matplotlib's colormaps; it draws nothing.
 THIRD_PARTY_HOMES = {"taichi": {"physics"}, "matplotlib": {"figures", "recording"}}

@@ -13,15 +13,9 @@ import json
 import math
 from pathlib import Path
 
-import numpy as np
-
 from taimill.design import families
 
 MM = 1e3
-
-
-def _better(a: float, b: float, direction: str) -> bool:
-    return a > b if direction == "maximize" else a < b
 
 
 def trial_rows(study) -> list[dict]:
@@ -155,84 +149,16 @@ def write_markdown(res: dict, path: Path) -> None:
 
 
 def draw(study, res: dict, path: Path) -> Path:
-    """The report page: profiles of the best designs and the references; objective
-    history (references as bands); Pareto front (several objectives) or objective vs K."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    """The report page (taimill.figures.design) of the best designs and the references."""
+    from taimill.figures.design import draw_report
     from taimill.model.jars import load_jar
 
-    objs = study.s.objectives
-    o = objs[0]
-    jars = [(f"design {i} (trial {r['trial']})\nK {r['ratio']:.3g}: {_fmt(r['figures'][o.key])}", r.get("file", r["jar"]))
-            for i, r in enumerate(res["best"][:5], 1)]
-    jars += [(f"{n}\nK {ref['ratio']:.3g}: {_fmt(ref['figures'][o.key])}", n) for n, ref in res["references"].items()]
-    cols = max(len(jars), 1)
-    fig = plt.figure(figsize=(max(12, 2.4 * cols), 9), constrained_layout=True)
-    grid = fig.add_gridspec(2, cols, height_ratios=[1, 1.5])
-    fig.suptitle(f"Jar design ({study.s.family} family): {', '.join(x.label for x in objs)}; "
-                 f"{res['evaluated']} designs, {res['pruned']} pruned; mean ± replicas' s.d.")
-    for i, (title, name) in enumerate(jars):
-        ax = fig.add_subplot(grid[0, i])
-        outline = load_jar(name, "design").profile.outline * MM
-        ax.fill(*np.vstack([outline, outline[:1]]).T, color="tab:blue" if title.startswith("design") else "0.8",
-                alpha=0.6)
-        ax.plot(*np.vstack([outline, outline[:1]]).T, color="k", lw=1)
-        lim = 1.1 * study.limits.radius * MM
-        ax.set(xlim=(-lim, lim), ylim=(-lim, lim), aspect="equal")
-        ax.set_title(title, fontsize=8)
-        ax.set_xticks([])
-        ax.set_yticks([])
-    half = max(cols // 2, 1)
-    ax = fig.add_subplot(grid[1, :half])
-    hist = res["history"]
-    n = [h["trial"] for h in hist]
-    y = [h[o.key] for h in hist]
-    ax.scatter(n, y, s=10, c=["tab:blue" if h["feasible"] else "0.6" for h in hist], label="designs (grey: infeasible)")
-    running, best = [], None
-    for h in hist:
-        if h["feasible"] and math.isfinite(h[o.key]) and (best is None or _better(h[o.key], best, o.direction)):
-            best = h[o.key]
-        running.append(best if best is not None else math.nan)
-    ax.plot(n, running, color="k", label="best so far")
-    for j, (name, ref) in enumerate(res["references"].items()):
-        m, s, _ = ref["figures"][o.key]
-        ax.axhspan(m - s, m + s, color=f"C{j + 2}", alpha=0.2)
-        ax.axhline(m, color=f"C{j + 2}", lw=1, label=f"{name} (K {ref['ratio']:.3g})")
-    ax.set_xlabel("trial")
-    ax.set_ylabel(f"{o.key} ({study_unit(o.key)})")
-    ax.set_title("objective history")
-    ax.legend(fontsize=7)
-    ax = fig.add_subplot(grid[1, half:])
-    if len(objs) > 1:
-        a, b = objs[0].key, objs[1].key
-        ax.scatter([h[a] for h in hist], [h[b] for h in hist], s=10, color="0.6", label="designs")
-        front = sorted(res["best"], key=lambda r: r["figures"][a][0])
-        ax.errorbar([r["figures"][a][0] for r in front], [r["figures"][b][0] for r in front],
-                    xerr=[r["figures"][a][1] for r in front], yerr=[r["figures"][b][1] for r in front],
-                    color="tab:red", marker="o", label="Pareto front")
-        for j, (name, by_k) in enumerate(res["reference_grid"].items()):
-            ax.scatter([f[a][0] for f in by_k.values()], [f[b][0] for f in by_k.values()], marker="s",
-                       color=f"C{j + 2}", label=f"{name} (each K)")
-        ax.set_xlabel(f"{a} ({study_unit(a)})")
-        ax.set_ylabel(f"{b} ({study_unit(b)})")
-        ax.set_title("Pareto front")
-    else:
-        ax.scatter([h["ratio"] for h in hist], y, s=10, color="tab:blue", label="designs")
-        for j, (name, by_k) in enumerate(res["reference_grid"].items()):
-            ks = sorted(by_k, key=float)
-            ax.errorbar([float(k) for k in ks], [by_k[k][o.key][0] for k in ks], yerr=[by_k[k][o.key][1] for k in ks],
-                        color=f"C{j + 2}", marker="s", ms=3, label=name)
-        ax.set_xlabel("K = ω/Ω + 1")
-        ax.set_ylabel(f"{o.key} ({study_unit(o.key)})")
-        ax.set_title("objective against K")
-    ax.legend(fontsize=7)
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    outlines = {}
+    for r in res["best"][:5]:
+        outlines[f"design {res['best'].index(r) + 1}"] = load_jar(r.get("file", r["jar"]), "design").profile.outline * MM
+    for name in res["references"]:
+        outlines[name] = load_jar(name, "design").profile.outline * MM
+    return draw_report(res, outlines, study.limits.radius * MM, path)
 
 
 def write_all(study, res: dict) -> dict:

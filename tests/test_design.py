@@ -212,21 +212,27 @@ def test_kill_9_mid_study_then_the_same_command_ends_with_the_same_designs(tiny_
     assert designs(killed) == designs(out)
 
 
-def test_a_designed_jar_passes_the_checks_draws_and_exports_to_liggghts(tiny_study, tmp_path):
+def test_every_designed_jar_passes_the_checks_draws_and_exports_to_liggghts(tiny_study, tmp_path):
     out, res = tiny_study
-    jar_file = Path(res["best"][0]["file"])
-    jar = load_jar(str(jar_file), "test")
-    assert constraints.violations(jar, cy_limits()) == []
-    code, _, err = main("jars", "show", jar_file, "--out", tmp_path / "jar.png")
-    assert code == 0 and (tmp_path / "jar.png").stat().st_size > 0, err
-    case = tmp_path / "case"
-    code, _, err = main("export", "liggghts", "p4-cy-steel", "--jar", jar_file, "--ratio", res["best"][0]["ratio"],
-                        "--out", case)
-    assert code == 0, err
-    files = {p.name for p in case.rglob("*") if p.is_file() and p.stat().st_size > 0}
-    assert {"in.taimill", "run.sh", "jar.stl", "start.data"} <= files, files
-    facets = (case / "jar.stl").read_text().count("facet normal")
-    assert facets > 100  # the designed profile, not a primitive cylinder
+    import optuna
+
+    study = optuna.load_study(study_name="design", storage=f"sqlite:///{out / 'study.db'}")
+    for t in study.trials:  # every design that ran is a valid jar within the constraints
+        if t.state.name == "COMPLETE":
+            jar = load_jar(str(out / "jars" / f"trial-{t.number:05d}.toml"), "test")
+            assert constraints.violations(jar, cy_limits()) == [], t.number
+            assert t.user_attrs["status"] == ["complete"]  # and it ran: every replica to its end
+    for i, best in enumerate(res["best"]):
+        jar_file = Path(best["file"])
+        assert constraints.violations(load_jar(str(jar_file), "test"), cy_limits()) == []
+        code, _, err = main("jars", "show", jar_file, "--out", tmp_path / f"jar{i}.png")
+        assert code == 0 and (tmp_path / f"jar{i}.png").stat().st_size > 0, err
+        case = tmp_path / f"case{i}"
+        code, _, err = main("export", "liggghts", "p4-cy-steel", "--jar", jar_file, "--ratio", best["ratio"], "--out", case)
+        assert code == 0, err
+        files = {p.name for p in case.rglob("*") if p.is_file() and p.stat().st_size > 0}
+        assert {"in.taimill", "run.sh", "jar.stl", "start.data"} <= files, files
+        assert (case / "jar.stl").read_text().count("facet normal") > 100  # the designed profile, not a primitive
 
 
 def test_several_objectives_give_a_pareto_set_and_a_floor_is_a_constraint(tmp_path):

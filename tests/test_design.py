@@ -167,6 +167,15 @@ def test_the_same_seed_gives_the_same_designs(tiny_study, tmp_path):
     assert any(state == "COMPLETE" for state, *_ in designs(out))
 
 
+def test_a_study_resumed_with_other_settings_is_refused_naming_them(tiny_study):
+    out, _ = tiny_study
+    args = list(TINY)
+    args[args.index("--replicas") + 1] = 3
+    code, stdout, err = main(*args, "--out", out)
+    assert code == 2 and stdout == "" and err.count("\n") == 1, err
+    assert "settings = replicas" in err.replace("'", "") and "give the same options to resume it" in err
+
+
 def _query(db: Path, sql: str) -> list:
     try:
         with sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=1) as c:

@@ -85,7 +85,7 @@ def results(study, references: dict, keep: int = 3) -> dict:
             "spread": "sample standard deviation of the replicas (ddof 1)",
             "settings": study.s.identity(), "evaluated": len(rows), "pruned": len(pruned),
             "runs": len(rows) * study.s.replicas + sum(len(v) for v in references.values()) * study.s.replicas,
-            "best": best, "references": refs, "reference_grid": references, "comparison": comparison,
+            "searched": sorted(study.distributions()), "best": best, "references": refs, "reference_grid": references, "comparison": comparison,
             "history": [{"trial": r["trial"], "ratio": r["ratio"], "feasible": r["feasible"],
                          **{o.key: r["figures"][o.key][0] for o in objs}} for r in rows]}
 
@@ -137,6 +137,10 @@ def write_markdown(res: dict, path: Path) -> None:
                      + " | (bundled) |")
     if res["comparison"]:
         lines += ["", f"Design 1 against each reference on {objs[0]} (beats: the bands mean ± s do not overlap):", ""]
+        ks = sorted({float(k) for by_k in res["reference_grid"].values() for k in by_k})
+        if len(ks) > 1 and "ratio" in res.get("searched", ()):
+            lines += [f"(The references run at K = {', '.join(f'{k:g}' for k in ks)}, each taken at its best; the designs' K "
+                      "is searched continuously, and a reference may do better between those values.)", ""]
         lines += [f"- {n}: {'beats' if c['beats'] else 'does not beat'} it, margin {c['margin']:.2f} × (s_d + s_r)"
                   for n, c in res["comparison"].items()]
     if res.get("confirmation"):

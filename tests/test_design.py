@@ -216,9 +216,13 @@ def test_kill_9_mid_study_then_the_same_command_ends_with_the_same_designs(tiny_
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     assert "RUNNING" in _states(db)
+    unchecked = len(_query(db, "SELECT trial_id FROM trials WHERE state = 'RUNNING' AND trial_id NOT IN "
+                              "(SELECT trial_id FROM trial_user_attributes WHERE key = 'violations')"))  # caught while asked
     done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert designs(killed) == designs(out)
+    abandoned = _query(db, "SELECT COUNT(*) FROM trial_user_attributes WHERE key = 'abandoned'")[0][0]
+    assert abandoned == unchecked
 
 
 def test_every_designed_jar_passes_the_checks_draws_and_exports_to_liggghts(tiny_study, tmp_path):

@@ -102,11 +102,20 @@ def write_best(study, res: dict) -> list[Path]:
         figs = [f"{k} = {m:.5g} ± {s:.2g} {study_unit(k)} (mean ± sample s.d. of {len(v)} replicas)"
                 for k, (m, s, v) in r["figures"].items()]
         path = folder / f"design-{i}.toml"
-        extra = [f"Run it: taimill run {study.s.preset} --jar {path.name} --ratio {r['ratio']:.6g}", *figs]
+        extra = [f"Run it: taimill run {preset_text(study.s.preset)} --jar {path.name} --ratio {r['ratio']:.6g}", *figs]
         path = study.write_jar(r["trial"], {**r["params"], "ratio": r["ratio"]}, extra, path)
         r["file"] = str(path)
         paths.append(path)
     return paths
+
+
+def preset_text(preset: str) -> str:
+    """A bundled preset by its name (p4-cy-steel), any other as given."""
+    from taimill.model import files
+
+    p = Path(preset)
+    bundled = files.BUNDLED["preset"][0] / p.name
+    return p.stem if p.suffix == ".toml" and bundled.exists() and bundled.resolve() == p.resolve() else preset
 
 
 def study_unit(key: str) -> str:
@@ -148,6 +157,9 @@ def write_markdown(res: dict, path: Path) -> None:
         lines += ["", f"Confirmation ({c['duration']:g} s runs, analysis from {c['analysis_start']:g} s, "
                   f"{c['replicas']} replicas):", ""]
         lines += [f"- {n} at K {v['ratio']:.3g}: " + ", ".join(f"{k} {_fmt(f)}" for k, f in v["figures"].items())
+                  + ("" if n not in c["comparison"] else
+                     f"; design 1 {'beats' if c['comparison'][n]['beats'] else 'does not beat'} it, "
+                     f"margin {c['comparison'][n]['margin']:.2f} × (s_d + s_r)")
                   for n, v in c["jars"].items()]
     path.write_text("\n".join(lines) + "\n")
 

@@ -199,6 +199,11 @@ def confirm(study, res: dict, duration: float) -> dict:
                         study.s.replicas, study.s.seed)
     best = res["best"][0]
     cands = {"design 1": (best["jar"], best["ratio"])} | {n: (n, r["ratio"]) for n, r in res["references"].items()}
+    path = study.out / "confirmation.json"  # kept: the same command again does not run it again
+    identity = json.loads(json.dumps({"settings": study.s.identity(), "duration": duration, "trial": best["trial"],
+                                      "candidates": cands}))
+    if path.exists() and json.loads(path.read_text()).get("identity") == identity:
+        return json.loads(path.read_text())["confirmation"]
     study.log(f"design: confirmation runs of {duration:g} s: {', '.join(cands)}")
     results = evaluate(protocol, list(cands.values()), workers=study.workers, scheduler=study.scheduler)
     jars = {n: {"ratio": k, "figures": {key: list(v) for key, v in figures(r, study.s.objectives, study.s.floors).items()}}
@@ -206,5 +211,9 @@ def confirm(study, res: dict, duration: float) -> dict:
     o = study.s.objectives[0]
     comparison = {n: dict(zip(("beats", "margin"), report.beats(jars["design 1"], ref, o)))
                   for n, ref in jars.items() if n != "design 1"}
-    return {"duration": duration, "analysis_start": start, "replicas": study.s.replicas, "jars": jars,
-            "comparison": comparison}
+    out = {"duration": duration, "analysis_start": start, "replicas": study.s.replicas, "jars": jars,
+           "comparison": comparison}
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps({"identity": identity, "confirmation": out}, indent=1))
+    tmp.replace(path)
+    return out

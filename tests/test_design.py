@@ -270,3 +270,16 @@ def test_several_objectives_give_a_pareto_set_and_a_floor_is_a_constraint(tmp_pa
     done = [t for t in study.trials if t.state.name == "COMPLETE"]
     assert done and all("floor impact_power" in t.constraints for t in done)
     assert (out / "report.png").stat().st_size > 0
+
+
+def test_a_study_on_a_dask_cluster_gives_the_same_designs(tiny_study, tmp_path):
+    from distributed import LocalCluster
+
+    out, _ = tiny_study
+    args = [str(a) for a in TINY]
+    args[args.index("--workers"):args.index("--workers") + 2] = []  # the cluster's workers run the runs
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        res = subprocess.run([sys.executable, "-m", "taimill", *args, "--references", "none", "--out", str(tmp_path / "d"),
+                              "--scheduler", cluster.scheduler_address], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert designs(tmp_path / "d") == designs(out)

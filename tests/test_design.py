@@ -109,6 +109,7 @@ def test_the_pareto_set_keeps_the_feasible_undominated_designs():
     (("--tolerance", 0), "--tolerance = 0"),
     (("--family", "spirals"), "--family = spirals"),
     (("--fix", "n_teeth=3"), "--fix = n_teeth"),
+    (("--fix", "n_lifters=9"), "--fix = n_lifters=9: allowed range [1, 4], an integer"),
     (("--references", "NOPE"), "--references = NOPE"),
     (("--trials", 0), "--trials = 0"),
 ])
@@ -283,3 +284,11 @@ def test_a_study_on_a_dask_cluster_gives_the_same_designs(tiny_study, tmp_path):
                               "--scheduler", cluster.scheduler_address], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr
     assert designs(tmp_path / "d") == designs(out)
+
+
+def test_a_study_whose_every_design_breaks_a_constraint_stops_with_one_line(tmp_path):
+    # three flats 19 mm deep leave too little volume (or no valid profile): nothing runs
+    code, out, err = main("design", "--out", tmp_path / "s", "--family", "flats", "--fix", "n_flats=3",
+                          "--fix", "flat_depth_mm=19", "--trials", 2, "--batch", 1, "--references", "none")
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "constraints = 50 designs in a row: every one broke a constraint" in err.replace("'", "")

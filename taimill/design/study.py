@@ -73,9 +73,13 @@ class Study:
                                          base.balls.radius, settings.min_wall_mm * 1e-3)
         self.family = families.family(settings.family)
         self.params = {p.name: p for p in self.family.params(self.limits.radius * 1e3, base.balls.radius * 1e3)}
-        for k in settings.fixed:
+        for k, v in settings.fixed.items():
             if k not in self.params:
                 raise ConfigError("command line", "--fix", k, f"a parameter of the {settings.family} family: {', '.join(self.params)}")
+            p = self.params[k]
+            if not p.lo <= v <= p.hi or (p.integer and v != int(v)):
+                raise ConfigError("command line", "--fix", f"{k}={v:g}", f"allowed range [{p.lo:g}, {p.hi:g}]"
+                                  + (", an integer" if p.integer else ""))
         directions = [o.direction for o in settings.objectives]
         storage = f"sqlite:///{(self.out / 'study.db').resolve()}"
         self.study = optuna.create_study(study_name=STUDY, storage=storage, directions=directions, load_if_exists=True)
@@ -162,7 +166,11 @@ class Study:
             plan = {"first": len(self.study.trials), "size": min(self.s.batch, trials - done), "done": False}
             self.study.set_user_attr("batch", plan)
             self._finish_batch(plan, progress)
-
+            if len(self.evaluated()) == done:  # every design of the batch broke a constraint
+                last = self.study.get_trials(deepcopy=False)[-1].user_attrs.get("violations") or ["?"]
+                raise ConfigError(self.out, "constraints", f"{MAX_PRUNED * plan['size']} designs in a row",
+                                  f"every one broke a constraint (the last: {last[0]}); loosen --tolerance, "
+                                  "--min-wall or --fix")
     def _finish_batch(self, plan: dict, progress) -> None:
         from optuna.trial import TrialState
 

@@ -92,7 +92,7 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
         return [(0, n - 1)]
     start = int(np.argmin(mask))  # a False: runs do not wrap past it
     order = np.roll(np.arange(n), -start)
-    out, first = [], None
+    out, first, prev = [], None, None
     for i in order:
         if mask[i] and first is None:
             first = i

@@ -26,7 +26,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from taimill.design import constraints, families
-from taimill.design.protocol import Objective, Protocol, evaluate, figures
+from taimill.design.protocol import Protocol, evaluate, figures
 from taimill.errors import ConfigError
 
 STUDY = "design"

@@ -117,6 +117,7 @@ def test_bad_input_is_one_line_naming_the_option(tmp_path, args, key):
     code, out, err = main("design", "--out", tmp_path / "s", *args)
     assert code == 2 and out == "" and err.count("\n") == 1, err
     assert key in err.replace("'", ""), err
+    assert not (tmp_path / "s").exists()  # refused before anything is written
 
 
 def test_an_out_folder_of_other_files_is_refused(tmp_path):

@@ -63,8 +63,6 @@ class Study:
 
         optuna.logging.set_verbosity(optuna.logging.WARNING)
         self.out, self.s, self.workers, self.scheduler, self.log = Path(out), settings, workers, scheduler, log
-        self.out.mkdir(parents=True, exist_ok=True)
-        (self.out / "jars").mkdir(exist_ok=True)
         self.protocol = Protocol(settings.preset, settings.overrides, settings.replicas, settings.seed)
         from taimill.model.preset import load_preset
 
@@ -80,6 +78,8 @@ class Study:
             if not p.lo <= v <= p.hi or (p.integer and v != int(v)):
                 raise ConfigError("command line", "--fix", f"{k}={v:g}", f"allowed range [{p.lo:g}, {p.hi:g}]"
                                   + (", an integer" if p.integer else ""))
+        self.out.mkdir(parents=True, exist_ok=True)  # only once the settings are checked
+        (self.out / "jars").mkdir(exist_ok=True)
         directions = [o.direction for o in settings.objectives]
         storage = f"sqlite:///{(self.out / 'study.db').resolve()}"
         self.study = optuna.create_study(study_name=STUDY, storage=storage, directions=directions, load_if_exists=True)

@@ -1036,37 +1036,42 @@ AB_REFERENCE_SECONDS = 3.0  # s simulated, CY steel on one thread
 AB_BED_N = 100_000  # the settled dense bed of section 5
 
 
-def ab_section(other: Path) -> list[dict]:
+def ab_section(other: Path, rounds: int = None, cases: str = "both") -> list[dict]:
     """The same measurements from this checkout and from `other` (e.g. a worktree of
     the commit before a change), interleaved in one run so that both see the same
     machine: the reference case on one thread (CPU µs per step) and the settled 10⁵
     dense bed (CPU ns per ball-step after DENSE_SETTLE steps). Each worker imports the
     taimill of its own checkout (PYTHONPATH)."""
-    print(f"\n8. A/B: this checkout ({ROOT}) against {other}, {AB_ROUNDS} interleaved rounds, best of each;"
+    rounds = rounds or AB_ROUNDS
+    print(f"\n8. A/B: this checkout ({ROOT}) against {other}, {rounds} interleaved rounds, best of each;"
           " one thread, CPU time")
     rows = []
     with tempfile.TemporaryDirectory(prefix="taimill-ab-") as tmp:
-        bed = dense_case(Path(tmp), AB_BED_N, False)
-        for rnd in range(AB_ROUNDS):
+        bed = dense_case(Path(tmp), AB_BED_N, False) if cases in ("both", "bed") else None
+        for rnd in range(rounds):
             for label, root in (("this", ROOT), ("other", other)):
-                r = measure(dict(kind="reference", duration=AB_REFERENCE_SECONDS, threads=1, copies=1, public=False,
-                                 use_grid=False), root=root)
-                rows.append(dict(case="CY steel", tree=label, round=rnd, value=r["cpu"] / r["steps"] * 1e6 if "cpu" in r
-                                 else None, unit="CPU µs/step", **r))
+                if cases in ("both", "cy"):
+                    r = measure(dict(kind="reference", duration=AB_REFERENCE_SECONDS, threads=1, copies=1, public=False,
+                                     use_grid=False), root=root)
+                    rows.append(dict(case="CY steel", tree=label, round=rnd, value=r["cpu"] / r["steps"] * 1e6
+                                     if "cpu" in r else None, unit="CPU µs/step", **r))
+                    print(f"  round {rnd} {label:5} CY steel             {rows[-1]['value']:.4f} CPU µs/step", flush=True)
+                if bed is None:
+                    continue
                 r = measure(dict(kind="dense", preset=str(bed), steps=DENSE_STEPS[AB_BED_N], threads=1, drum=False,
                                  settle=DENSE_SETTLE[AB_BED_N], spawned=time.time()), timeout=3600, root=root)
                 settled = r.get("settled", {})
                 value = settled["cpu"] / (settled["steps"] * AB_BED_N) * 1e9 if settled else None
                 rows.append(dict(case=f"bed {AB_BED_N} settled", tree=label, round=rnd, value=value,
                                  unit="CPU ns/ball-step", **r))
-                for row in rows[-2:]:
-                    shown = f"{row['value']:.4f}" if row["value"] is not None else row.get("error", "failed")
-                    print(f"  round {rnd} {row['tree']:5} {row['case']:20} {shown} {row['unit']}", flush=True)
+                row = rows[-1]
+                shown = f"{row['value']:.4f}" if row["value"] is not None else row.get("error", "failed")
+                print(f"  round {rnd} {row['tree']:5} {row['case']:20} {shown} {row['unit']}", flush=True)
     for case, unit in dict.fromkeys((r["case"], r["unit"]) for r in rows):
         best = {t: min((r["value"] for r in rows if r["case"] == case and r["tree"] == t and r["value"] is not None),
                        default=None) for t in ("this", "other")}
         if None not in best.values():
-            print(f"  {case}: this {best['this']:.4f}, other {best['other']:.4f} {unit} (best of {AB_ROUNDS});"
+            print(f"  {case}: this {best['this']:.4f}, other {best['other']:.4f} {unit} (best of {rounds});"
                   f" this / other = {best['this'] / best['other']:.3f}")
     return rows
 
@@ -1080,6 +1085,8 @@ def main():
     ap.add_argument("--json", type=Path, metavar="FILE", help="write every number to FILE")
     ap.add_argument("--ab", type=Path, metavar="DIR", help="only section 8: this checkout against the one in DIR"
                     " (e.g. `git worktree add DIR HEAD~1`), interleaved")
+    ap.add_argument("--ab-rounds", type=int, help=f"rounds of --ab (default {AB_ROUNDS})")
+    ap.add_argument("--ab-cases", choices=("both", "cy", "bed"), default="both", help="cases of --ab")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
@@ -1089,7 +1096,7 @@ def main():
     report = dict(machine=machine(), quick=args.quick)
     print_machine(report["machine"])
     if args.ab:
-        report["ab"] = ab_section(args.ab.resolve())
+        report["ab"] = ab_section(args.ab.resolve(), args.ab_rounds, args.ab_cases)
         args.only = "ab"
     if args.only in (None, "reference"):
         duration = QUICK_DURATION if args.quick else FULL_DURATION

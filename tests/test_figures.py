@@ -20,11 +20,11 @@ import pytest  # noqa: E402
 from taimill.analysis.run import analyse  # noqa: E402
 from taimill.analysis.rungeometry import FLOOR, SIDE, RunGeometry  # noqa: E402
 from taimill.analysis.spatial import MIN_EVENTS, SPOT_FACTOR, WallMap, hot_spot_text  # noqa: E402
-from taimill.figures.report import (draw_contact_map, draw_dissipation_spectra, draw_se, draw_velocity_pdfs,  # noqa: E402
+from taimill.figures.report import (draw_dissipation_spectra, draw_se, draw_velocity_pdfs,  # noqa: E402
                                     draw_wear_map, overview)
 from taimill.model.files import ROOT  # noqa: E402
 from taimill.model.preset import load_preset  # noqa: E402
-from taimill.schema import EVENT_COLUMNS  # noqa: E402
+from test_analysis import events  # noqa: E402 — event rows built column by column
 
 CY = ROOT / "presets/p4-cy-steel.toml"
 
@@ -94,14 +94,6 @@ def test_wear_map_greys_cells_with_too_few_events_and_says_so(analysis):
 # ------------------------------------------------------------------ the hot-spot rule
 def geometry() -> RunGeometry:
     return RunGeometry.from_config(load_preset(CY).as_dict(), np.full(12, 0.006))
-
-
-def events(**cols):
-    n = len(next(iter(cols.values())))
-    out = {k: np.zeros(n, dtype=v[0]) for k, v in EVENT_COLUMNS.items()}
-    for k, v in cols.items():
-        out[k] = np.asarray(v, dtype=EVENT_COLUMNS[k][0])
-    return out
 
 
 def side_events(g, angles, z, se):

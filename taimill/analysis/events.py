@@ -62,22 +62,29 @@ class EventStats:
 
     def result(self, tau: float, volume: float | None = None, n_balls: int | None = None) -> dict:
         """Summary over a window of length tau (s); volume (m³) adds the densities."""
-        name = f"stress events (onset u̇n ≥ {self.min_un * 1e3:g} mm/s)" if self.min_un > 0 else "all contacts"
-        out = {"estimator": "event", "counted": name, "min_un": self.min_un, "events_below_threshold": self.dropped}
-        per = (lambda s: s / tau if tau > 0 else math.nan)
-        n = int(self.count.sum())
-        se_n, se_t = float(self.se_n.sum()), float(self.se_t.sum())
-        out.update(_split("", n, se_n, se_t, per))
-        for k, name in enumerate(KINDS):
-            out.update(_split(f"_{name}", int(self.count[k]), float(self.se_n[k]), float(self.se_t[k]), per))
-        out["events_ball_ball"], out["events_ball_wall"] = int(self.count[0]), int(self.count[1])
-        out["collision_rate"] = per(n)
-        if n_balls:
-            out["collision_rate_per_ball"] = per(n) / n_balls
-        if volume:
-            out["impact_power_density"] = out["impact_power"] / volume
-            out["mean_se_density"] = out["mean_se"] / volume
-        return out
+        return estimator_keys("event", self.min_un, self.dropped, self.count, self.se_n, self.se_t, tau, volume, n_balls)
+
+
+def estimator_keys(estimator: str, min_un: float, dropped: int, count, se_n, se_t, tau: float,
+                   volume: float | None = None, n_balls: int | None = None) -> dict:
+    """The event estimator's keys from its sums per kind (KINDS order): events, normal and
+    tangential stress energy (J), over a window of tau s; stress events when min_un > 0
+    (m/s), `dropped` events below it; volume (m³) adds the densities."""
+    name = f"stress events (onset u̇n ≥ {min_un * 1e3:g} mm/s)" if min_un > 0 else "all contacts"
+    out = {"estimator": estimator, "counted": name, "min_un": min_un, "events_below_threshold": int(dropped)}
+    per = (lambda s: s / tau if tau > 0 else math.nan)
+    n = int(np.sum(count))
+    out.update(_split("", n, float(np.sum(se_n)), float(np.sum(se_t)), per))
+    for k, kind in enumerate(KINDS):
+        out.update(_split(f"_{kind}", int(count[k]), float(se_n[k]), float(se_t[k]), per))
+    out["events_ball_ball"], out["events_ball_wall"] = int(count[0]), int(count[1])
+    out["collision_rate"] = per(n)
+    if n_balls:
+        out["collision_rate_per_ball"] = per(n) / n_balls
+    if volume:
+        out["impact_power_density"] = out["impact_power"] / volume
+        out["mean_se_density"] = out["mean_se"] / volume
+    return out
 
 
 def _split(suffix: str, n: int, se_n: float, se_t: float, per) -> dict:

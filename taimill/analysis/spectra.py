@@ -87,29 +87,15 @@ def summary(sp: Spectra) -> dict:
 
 def event_keys(sp: Spectra, tau: float, volume: float | None = None, n_balls: int | None = None,
                stress_only: bool = True) -> dict:
-    """The event estimator's keys (taimill.analysis.events.EventStats.result) from the
+    """The event estimator's keys (taimill.analysis.events.estimator_keys) from the
     spectra over a window of tau s: counts and the kinematic stress energies, per kind,
     exact to the fixed point's 2⁻²⁴ per event. For a store that kept no event rows."""
-    from taimill.analysis.events import KINDS as EVENT_KINDS, _split
+    from taimill.analysis.events import estimator_keys
 
     classes = [0] if stress_only else [0, 1]
-    count = sp.count[:, classes, MEASURES.index("se_normal")].sum(axis=(1, 2))
+    n, se = MEASURES.index("se_normal"), MEASURES.index("se_tangential")
     energy = sp.energy()
-    se_n = energy[:, classes, MEASURES.index("se_normal")].sum(axis=(1, 2))
-    se_t = energy[:, classes, MEASURES.index("se_tangential")].sum(axis=(1, 2))
-    per = (lambda s: s / tau if tau > 0 else math.nan)
-    name = f"stress events (onset u̇n ≥ {sp.stress_un * 1e3:g} mm/s)" if stress_only else "all contacts"
-    out = {"estimator": "event (from the energy spectra)", "counted": name, "min_un": sp.stress_un if stress_only else 0.0,
-           "events_below_threshold": int(sp.count[:, 1, 0].sum()) if stress_only else 0}
-    n = int(count.sum())
-    out.update(_split("", n, float(se_n.sum()), float(se_t.sum()), per))
-    for k, kind in enumerate(EVENT_KINDS):
-        out.update(_split(f"_{kind}", int(count[k]), float(se_n[k]), float(se_t[k]), per))
-    out["events_ball_ball"], out["events_ball_wall"] = int(count[0]), int(count[1])
-    out["collision_rate"] = per(n)
-    if n_balls:
-        out["collision_rate_per_ball"] = per(n) / n_balls
-    if volume:
-        out["impact_power_density"] = out["impact_power"] / volume
-        out["mean_se_density"] = out["mean_se"] / volume
-    return out
+    return estimator_keys("event (from the energy spectra)", sp.stress_un if stress_only else 0.0,
+                          int(sp.count[:, 1, n].sum()) if stress_only else 0, sp.count[:, classes, n].sum(axis=(1, 2)),
+                          energy[:, classes, n].sum(axis=(1, 2)), energy[:, classes, se].sum(axis=(1, 2)), tau, volume,
+                          n_balls)  # [kind, class, bin] summed over the classes and bins

@@ -38,14 +38,7 @@ def outcome_figure(path, curves: list[dict], points: dict | None = None, target:
         ax.axhline(target, color="grey", lw=0.8, ls=":", label=f"target {target:g}")
     ax.set(xlabel="milling time (min)", ylabel=ylabel, title=title)
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    path = Path(path)
-    try:
-        with whole_file(path, "figure") as part:
-            fig.savefig(part, dpi=150)
-    finally:
-        plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def stress_model_figure(path, rows: list[dict], ylabel: str = "value", title: str = "") -> Path:
@@ -65,6 +58,13 @@ def stress_model_figure(path, rows: list[dict], ylabel: str = "value", title: st
                 label=f"{c}: mean SE {se * 1e3:.3g} mJ")
     ax.set(xscale="log", xlabel="stress number SN (events ≥ threshold per g)", ylabel=ylabel, title=title)
     ax.legend(fontsize=7)
+    return _save(fig, path)
+
+
+def _save(fig, path) -> Path:
+    """Write the figure whole (no part of it left on a failure) and close it."""
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
     path = Path(path)
     try:

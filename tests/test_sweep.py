@@ -336,8 +336,8 @@ def test_report_writes_figures_and_overlay_via_the_cli(local_sweep, tmp_path):
     res = taimill("report", path, "--out", tmp_path / "fig", "--overlay", csv)
     assert res.returncode == 0, res.stderr
     names = sorted(Path(p).name for p in res.stdout.split())
-    assert names == ["impact_power.png", "mean_se.png", "mean_se_components.png", "normal_fraction.png",
-                     "overlay.png", "randomness.png", "regimes.png"]
+    assert names == ["dissipation.png", "energy_spectra.png", "impact_power.png", "mean_se.png", "mean_se_components.png",
+                     "normal_fraction.png", "overlay.png", "randomness.png", "regimes.png", "shear.png"]
     for p in res.stdout.split():
         assert Path(p).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and Path(p).stat().st_size > 10_000
     svg = report_sweep(path, tmp_path / "svg", "svg")

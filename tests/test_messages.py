@@ -122,3 +122,44 @@ def test_sweep_says_what_its_workers_compile():
     assert res.returncode == 0, res.stderr
     assert [n for n, _, _ in COMPILING.findall(res.stderr)] == ["12"]
     assert len(json.loads(res.stdout)) == 2
+
+
+# ---------------------------------------------------------------- a file of the wrong kind
+PAIR_FILE = '[pair.mine]\ncontact = "steel"\nmu_s = 0.5\nmu_d = 0.4\n'
+
+
+@pytest.fixture(scope="module")
+def kinds(tmp_path_factory):
+    """One of each kind of taimill file and store folder, the stores written by the CLI."""
+    d = tmp_path_factory.mktemp("kinds")
+    (d / "jar.toml").write_text((ROOT / "jars" / "HM.toml").read_text())
+    (d / "preset.toml").write_text((ROOT / "presets" / "p4-cy-steel.toml").read_text())
+    (d / "mill.toml").write_text((ROOT / "taimill" / "data" / "mills" / "fritsch-p5.toml").read_text())
+    (d / "pair.toml").write_text(PAIR_FILE)
+    assert main("run", d / "preset.toml", "--duration", 0.05, "--out", d / "run.zarr")[0] == 0
+    assert main("sweep", d / "preset.toml", "--ratio", -2, "--duration", 0.05, "--out", d / "sweep.zarr")[0] == 0
+    return d
+
+
+# (command with {X} where the file goes, the kind it expects)
+EXPECTS = [
+    (["run", "{X}"], "preset file"), (["sweep", "{X}", "--ratio", "-2"], "preset file"), (["tui", "{X}"], "preset file"),
+    (["export", "liggghts", "{X}", "--out", "{D}/case"], "preset file"), (["run", "--jar", "{X}"], "jar file"),
+    (["jars", "show", "{X}"], "jar file"), (["run", "--pair", "{X}"], "pair file"), (["mills", "{X}"], "mill file"),
+    (["calibrate", "drop", "--pair", "{X}", "--h0", "10"], "pair file"), (["run", "--mill", "{X}"], "mill file"),
+    (["analyse", "{X}"], "run store"), (["report", "{X}", "--out", "{D}/figs"], "run store"),
+    (["compare", "{X}", "{D}/run.zarr"], "run store"), (["record", "{X}", "--rrd", "{D}/x.rrd"], "run store"),
+]
+GIVEN = {"jar file": "jar.toml", "preset file": "preset.toml", "mill file": "mill.toml", "pair file": "pair.toml",
+         "run store": "run.zarr", "sweep store": "sweep.zarr"}
+
+
+@pytest.mark.parametrize("argv, expected", EXPECTS, ids=lambda x: " ".join(x) if isinstance(x, list) else x)
+def test_a_file_of_another_kind_is_named_as_such(kinds, argv, expected):
+    for given, name in GIVEN.items():
+        if given == expected or (expected == "run store" and given == "sweep store" and argv[0] == "report"):
+            continue  # report draws sweep stores too
+        code, out, err = main(*(a.format(X=kinds / name, D=kinds) for a in argv))
+        assert code == 2 and err.count("\n") == 1, (given, err)
+        assert f"this is a {given}, not a {expected};" in err, (given, err)
+        assert "taimill " in err.split(";", 1)[1] or "use it with" in err  # and says how to use it

@@ -131,6 +131,9 @@ def load_friction(name: str, source, key="pair", base: Path | None = None) -> tu
         return _pair_file(name, source, key, base)
     db = _materials_db()
     if name not in db["pair"]:
+        folder = Path(base or ".") / name
+        if folder.is_dir():  # a store given as the pair: named as such
+            files.name_kind("pair", files.kind_of_path(folder), name, source, key)
         raise ConfigError(source, key, name, f"must be one of {', '.join(db['pair'])}, or a pair file NAME.toml")
     t = Table(db["pair"][name], MATERIALS_FILE, f"pair.{name}.", known=("contact", "source", *FRICTION_KEYS))
     contact = t.get("contact", None, kind=str)

@@ -145,7 +145,7 @@ def resolve(name_or_path, kind: str, given_on_command_line: bool, base: Path | N
     who named it, for the error; a path is not checked here (reading it says why)."""
     text = os.fspath(name_or_path)
     here = Path(text) if given_on_command_line or base is None else Path(base) / text
-    if here.is_dir():  # a store folder where a file is meant: named as such
+    if os.path.isdir(here):  # a store folder where a file is meant: named as such (os.path: never raises)
         name_kind(kind, kind_of_path(here), text, source or ("command line" if given_on_command_line else base),
                   key or kind)
     if not is_name(text):
@@ -200,11 +200,11 @@ def kind_of_path(path) -> str | None:
     None (missing, unreadable, or none of these)."""
     p = Path(path)
     try:
-        if p.is_dir():
+        if os.path.isdir(p):
             if not ((p / "zarr.json").is_file() or (p / ".zgroup").is_file()):
                 return None
             return next((k for k, arrays in STORE_LAYOUTS.items() if all((p / a).is_dir() for a in arrays)), None)
-        if p.is_file() and p.suffix == ".toml" and p.stat().st_size < (1 << 20):
+        if os.path.isfile(p) and p.suffix == ".toml" and p.stat().st_size < (1 << 20):
             return kind_of(tomllib.loads(p.read_text(encoding="utf-8")))
     except (OSError, ValueError):  # unreadable, not UTF-8, not TOML: the reader says why
         return None

@@ -115,6 +115,12 @@ def cache_folder() -> str:
 # measured its own (the markers).
 FIRST_COMPILE_SECONDS = 19.7
 CACHED_COMPILE_SECONDS = 2.0
+# CPU s of a set-up above which its kernels were compiled, not read from Taichi's cache:
+# a Runner of those 12 balls took 21.3 s CPU the first time and 1.25 s from the cache
+# (Runner.setup_seconds, the same machine). CPU time, not wall time: other processes on
+# the cores stretch the wall time (127 s and 8.0 s in that measurement, while other jobs
+# shared both cores) but hardly the CPU time.
+FIRST_COMPILE_CPU_SECONDS = 5.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -206,13 +212,13 @@ def compile_plan(specs: list[MillSpec], **options) -> CompilePlan:
     return CompilePlan(max(s.n for s in specs), _existing(key) is None, first, float(seconds), str(marker))
 
 
-def _record_compile(plan: CompilePlan, seconds: float) -> None:
-    """Note this shape as compiled, with its time, and the time as this machine's
-    latest first or cached compile. A compile of a shape without a marker that took
-    less than half a first compile found Taichi's cache filled (by a run before the
-    markers, or markers deleted): it counts as cached. Best effort: a folder that
-    cannot be written only loses the note."""
-    first = plan.first and seconds > plan.seconds / 2
+def _record_compile(plan: CompilePlan, seconds: float, cpu_seconds: float) -> None:
+    """Note this shape as compiled, with its time (wall s), and the time as this
+    machine's latest first or cached compile: a first compile if it took more than
+    FIRST_COMPILE_CPU_SECONDS of CPU (a shape without a marker may find Taichi's cache
+    filled by a run before the markers). Best effort: a folder that cannot be written
+    only loses the note."""
+    first = cpu_seconds > FIRST_COMPILE_CPU_SECONDS
     try:
         _markers().mkdir(parents=True, exist_ok=True)
         Path(plan.marker).write_text(json.dumps({"seconds": round(seconds, 3), "first": first, "balls": plan.balls}))
@@ -346,7 +352,7 @@ class Runner:
         called with the CompilePlan before kernels are compiled (not when this
         process has them). `setup_seconds`: wall time of this set-up (Taichi's start,
         fields, loading the mills, compiling), which a run's speed leaves out."""
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), time.process_time()
         plan = compile_plan(specs, mode=mode, use_grid=use_grid, pool=pool, reorder=reorder)
         on_compile = on_compile or _listener
         if plan.needed and on_compile:
@@ -372,7 +378,7 @@ class Runner:
             self._compile()
         self.setup_seconds = time.perf_counter() - t0
         if plan.needed:
-            _record_compile(plan, self.setup_seconds)
+            _record_compile(plan, self.setup_seconds, time.process_time() - cpu0)
 
     def _compile(self):
         """Compile the launch and drain kernels now, by calling them with nothing to do

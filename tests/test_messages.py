@@ -163,3 +163,18 @@ def test_a_file_of_another_kind_is_named_as_such(kinds, argv, expected):
         assert code == 2 and err.count("\n") == 1, (given, err)
         assert f"this is a {given}, not a {expected};" in err, (given, err)
         assert "taimill " in err.split(";", 1)[1] or "use it with" in err  # and says how to use it
+
+
+def test_tui_says_it_compiles_before_its_screen_opens(monkeypatch, tmp_path):
+    from taimill.physics import runner
+    from taimill.tui.app import MillApp
+
+    shown = []
+    monkeypatch.setattr(runner, "_engines", {})  # this process has no kernels yet
+    monkeypatch.setattr(MillApp, "run", lambda self: shown.append(self))  # the screen would open here
+    code, out, err = main("tui", "p4-cy-steel", "--paused", "--out-dir", tmp_path)
+    assert code == 0 and len(shown) == 1, err
+    (n, _, _), = COMPILING.findall(err)
+    assert n == "12"
+    code, out, err = main("tui", "p4-cy-steel", "--paused", "--out-dir", tmp_path)  # its kernels are there now
+    assert code == 0 and "compiling" not in err

@@ -104,8 +104,9 @@ def _check_dask_worker():
 def run_chunk(chunk_id: int, jobs: list[Job], keep_streams: bool) -> list[PointResult]:
     """Simulate the chunk's points as one batch of mills; a point that goes unstable
     keeps what it computed (status "unstable: …") and the others run on. Each point's
-    wall_seconds is the batch's wall time shared in proportion to its ball-steps (the
-    mills of a batch advance one after another on the worker's one thread)."""
+    wall_seconds is the batch's wall time, set-up and compiling left out, shared in
+    proportion to its ball-steps (the mills of a batch advance one after another on the
+    worker's one thread)."""
     from taimill.model.spec import from_preset
     from taimill.physics.runner import Runner, init_taichi
     from taimill.runs.simulation import point_result

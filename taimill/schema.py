@@ -147,7 +147,8 @@ SUMMARY_UNITS: dict[str, str] = {
     "wall_fraction": "1", "flight_fraction": "1", "flight_chord": "1", "wall_lag": "1",  # regime_criteria
     "regime_thresholds": "1",
     "power_per_area": "W/m²", "concentration": "1", "arc_length": "m", "angle_deg": "deg",
-    "x": "m", "y": "m", "z": "m",  # wear_hot_spot
+    "x": "m", "y": "m", "z": "m", "z_range": "m", "r_range": "m", "over_band": "1", "band_sigmas": "1",
+    "sampled_share": "1",  # wear_hot_spot
     "critical_ratio": "1", "single_ball_se": "J",
     "analysis_window": "s", "sim_seconds": "s", "wall_seconds": "s", "realtime_factor": "1", "dt": "s",
     "steps": "1", "ratio": "1", "plate_rpm": "rpm",
@@ -163,6 +164,16 @@ SUMMARY_UNITS: dict[str, str] = {
     "mu": "1", "mu_wall": "1", "mu_d_wall": "1", "mu_r_wall": "1", "ball_mass": "kg", "ball_diameter_mm": "mm", "plate_radius_mm": "mm",
     **{f"dissipated_power_{k}_{c}_{p}": "W" for k in MECHANISM_KINDS for c in MECHANISM_CLASSES for p in MECHANISM_PARTS},
     "slip_ratio": "1",  # taimill.analysis.regime.slip_ratio (regime maps)
+    # the energy spectra's summary (taimill.analysis.spectra.summary; rate_above: events/s
+    # at or above each energy, keyed by the energy in J) and their sweep columns
+    "softening": "1",  # contact stiffness divided by it (a softened run)
+    # the dose (taimill.outcome.dose): the jar's powder, the dissipated power per gram, the shear view
+    "powder_mass_g": "g", "ball_to_powder": "1", "rate_above_per_g": "1/(s g)",
+    **{f"specific_power{s}_W_per_g": "W/g" for s in ("", "_impact", "_persistent", "_normal", "_shear")},
+    "shear_power_persistent_W": "W", "shear_share": "1", "shear_power_persistent_wall_W_per_m2": "W/m²",
+    "window": "s", "stress_un": "m/s", "energy": "J", "mean": "J", "median": "J", "p90": "J", "rate_above": "1/s",
+    **{f"spectrum_{m}_{stat}": "J" for m in ("dissipated_normal", "dissipated_friction", "se_normal", "se_tangential")
+       for stat in ("mean", "median", "p90")},
 }
 
 

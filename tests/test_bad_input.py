@@ -102,11 +102,13 @@ TOML_READERS = {
     "calibrate oblique --pair": (["calibrate", "oblique", "--pair", "{F}"], "pair"),
     "preset jar key": (["run", "{P:jar}"], "jar"),
     "preset pair key": (["run", "{P:pair}"], "pair"),
+    "kinetics predict FIT": (["kinetics", "predict", "{F}", "{in}/condition.json"], "FIT"),
 }
 CSV_READERS = {
     "calibrate fit --data": (["calibrate", "fit", "--pair", "steel-steel", "--data", "{F}"], "--data"),
     "report --overlay": (["report", "{in}/sweep.zarr", "--overlay", "{F}"], "--overlay"),
     "preset initial_positions key": (["run", "{P:initial_positions}"], "initial_positions"),
+    "kinetics fit POINTS": (["kinetics", "fit", "{F}", "--out", "{work}/new.toml"], "POINTS"),
 }
 
 

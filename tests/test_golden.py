@@ -43,6 +43,8 @@ TIMING_KEYS = ("wall_seconds", "realtime_factor")
 
 
 def _digest(a: np.ndarray) -> str:
+    if a.dtype.kind in "OUT":  # names (the spectra's coordinates): their text
+        return f"str{list(a.shape)}:" + hashlib.sha256(json.dumps(np.asarray(a).tolist()).encode()).hexdigest()[:24]
     a = np.ascontiguousarray(a)
     return f"{a.dtype.str}{list(a.shape)}:" + hashlib.sha256(a.tobytes()).hexdigest()[:24]
 
@@ -52,9 +54,9 @@ def _read_digests(path: Path) -> dict:
     g = zarr.open_group(path, mode="r")
     out = {}
     for table in sorted(k for k, _ in g.groups()):
-        n = g[table].attrs["n_valid"]
+        n = g[table].attrs.get("n_valid")  # None: not a table (the spectra): every element
         for name, arr in sorted(g[table].arrays()):
-            out[f"{table}/{name}"] = _digest(arr[:n])
+            out[f"{table}/{name}"] = _digest(arr[:n] if n is not None else arr[...])
     summary = {k: v for k, v in dict(g.attrs["summary"]).items() if k not in TIMING_KEYS}
     out["summary"] = hashlib.sha256(json.dumps(summary, sort_keys=True).encode()).hexdigest()[:24]
     out["events"] = summary["events"]

@@ -117,6 +117,27 @@ def test_sliding_window_series_follow_the_events(run):
     np.testing.assert_allclose(kinetic, store.energy["kinetic"][1:], rtol=1e-12)
 
 
+def test_stress_energy_series_are_in_mj_as_in_the_reports(run):
+    """The mean stress energy over the last window, read back from the .rrd, in mJ (the
+    reports', summary's and TUI's unit; it was J), the unit in the entity path and in
+    the colour-scale line of the run's info."""
+    store, live, _ = run
+    e = store.events
+    T = store.frames["time"][-1]
+    length = min(1.0, T - store.frames["time"][0])
+    inside = (e["t_start"] > T - length) & (e["t_start"] <= T) & (e["un"] >= STRESS_MIN_UN)
+    expected_mj = 1e3 * (e["se_n"][inside] + e["se_t"][inside]).sum() / inside.sum()
+    _, total = series(live, "mean_se_mJ/total")
+    assert total[-1] == pytest.approx(expected_mj, rel=1e-9)
+    assert 0.01 < total[-1] < 100  # mJ: a 6 mm steel ball's stress energies are 0.1 … 10 mJ
+    _, normal = series(live, "mean_se_mJ/normal")
+    assert normal[-1] == pytest.approx(1e3 * e["se_n"][inside].sum() / inside.sum(), rel=1e-9)
+    paths = set(rr.chunk.RrdReader(live).stream().collect().schema().entity_paths())
+    assert "/stats/mean_se/total" not in paths and "/stats/mean_se_mJ/total" in paths
+    info = table(live, scene.INFO, index=None)["text"][-1][0]
+    assert " mJ)" in info and "up to" in info
+
+
 def test_energy_balance_series_closes(run):
     """The ledger closes to ≈ 1e-4 of the energy turned over (summary of the same run);
     1 % would flag a broken ledger or a wrong sign in the series."""

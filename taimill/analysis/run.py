@@ -12,9 +12,11 @@ from taimill.analysis.events import EventStats
 from taimill.analysis.rungeometry import RunGeometry
 from taimill.analysis.sampled import SampledStats
 from taimill.analysis.spatial import RadialDensity, WallMap, contact_map
+from taimill.analysis.spectra import event_keys as spectra_event_keys
 from taimill.analysis.summary import Summary
 from taimill.errors import ConfigError, StoreError
 from taimill.model.mechanisms import STRESS_MIN_UN
+from taimill.model.spectra import from_rows
 from taimill.store.run import RunStore, open_run, why
 from taimill.schema import with_units
 
@@ -38,7 +40,18 @@ class RunAnalysis:
     def parts(self) -> dict:
         """The summary's parts over the window (Summary.parts), computed once: the
         accumulators are complete when `analyse` returns."""
-        return self.summary.parts(self.t1)
+        parts = self.summary.parts(self.t1)
+        if not self.events_stored:  # the event statistics from the spectra: the same numbers, exact to 2⁻²⁴
+            sp = self.summary.last_spectra
+            parts["event_estimator"] = spectra_event_keys(sp, self.tau, self.geom.volume, self.geom.n_balls)
+            parts["all_contacts_estimator"] = spectra_event_keys(sp, self.tau, self.geom.volume, self.geom.n_balls,
+                                                                 stress_only=False)
+        return parts
+
+    @property
+    def events_stored(self) -> bool:
+        """The run kept one row per event (else only their spectra: outputs.events)."""
+        return (self.store.config or {}).get("events_output", "rows") == "rows"
 
     @property
     def event(self) -> EventStats:
@@ -88,6 +101,9 @@ class RunAnalysis:
             "wall_energy": {"impact": self.wall.total("impact"), "friction": self.wall.total("friction")},
             "critical_ratio": p["critical_ratio"],
             "single_ball_hit": p["single_ball_hit"],
+            "spectra": p.get("spectra"),
+            "events_stored": "rows" if self.events_stored else
+            "spectra only (outputs.events = \"spectra\"): no wall map, contact map or speed distributions",
         })
 
 
@@ -117,6 +133,19 @@ def analyse(run, *, analysis_start: float | None = None, min_un: float = STRESS_
     summary = Summary(geom, geom.n_balls, store.radii, t0, t_end, min_un=min_un)
     summary.frames(frames)
     summary.events(events)
+    rows_kept = config.get("events_output", "rows") == "rows"
+    if rows_kept:  # the spectra of this window, binned from the rows as the kernel bins them
+        summary.spectra(from_rows(events, t0, t_end, min_un))
+    else:
+        sp = store.spectra
+        if sp is None:
+            raise StoreError(store.where, "spectra", "missing: the run kept no event rows (outputs.events = \"spectra\") "
+                             "and its spectra were never committed")
+        if t0 != sp.start or min_un != sp.stress_un:
+            raise ConfigError(source, "--analysis-start" if t0 != sp.start else "--min-un", t0 if t0 != sp.start else min_un,
+                              f"this run kept only its events' spectra (outputs.events = \"spectra\"), from {sp.start:g} s "
+                              f"with u̇n ≥ {sp.stress_un:g} m/s for stress events: analyse it over that window")
+        summary.spectra(sp)
     if len(energy["time"]):
         summary.energy(energy)
     sampled, error = None, None

@@ -57,6 +57,11 @@ class RunGeometry:
         return self.profile.area * self.height
 
     @property
+    def wall_area(self) -> float:
+        """m², the jar's inner surface: side wall, floor and lid."""
+        return self.perimeter * self.height + 2.0 * self.profile.area
+
+    @property
     def jar_radius(self) -> float:
         return self.profile.bounding_radius
 

@@ -19,6 +19,7 @@ from taimill.analysis.events import EventStats
 from taimill.analysis.regime import RegimeFeatures, map_regime, slip_ratio
 from taimill.analysis.rungeometry import RunGeometry
 from taimill.analysis.spatial import RadialDensity, WallMap
+from taimill.analysis.spectra import summary as spectra_summary
 from taimill.analysis.theory import single_ball_hit
 from taimill.model.mechanisms import STRESS_MIN_UN
 from taimill.schema import ENERGY_COLUMNS, MECHANISM_CLASSES, MECHANISM_COLUMNS, MECHANISM_KINDS, MECHANISM_PARTS
@@ -142,6 +143,7 @@ class Summary:
         self.all_contacts = EventStats(t0, t1) if whole_run else None
         self.density = RadialDensity(geom, t0) if whole_run else None
         self.wall = WallMap(geom, t0, t1=t1) if whole_run else None
+        self.last_spectra = None  #: the kernel's energy spectra (taimill.model.spectra) at the last drain
 
     def events(self, block: dict) -> None:
         self.events_total += len(block["t_start"])
@@ -160,6 +162,9 @@ class Summary:
 
     def energy(self, block: dict) -> None:
         self.ledger.add(block)
+
+    def spectra(self, spectra) -> None:
+        self.last_spectra = spectra
 
     def parts(self, t1: float) -> dict:
         """The summary over [t0, t1] (t1: s, the window's end) by accumulator, named as
@@ -182,6 +187,8 @@ class Summary:
             out["single_ball_hit"] = single_ball_hit(g.plate_radius, g.jar_radius, g.ball_radius, g.plate.end, g.ratio,
                                                      g.ball_mass)
         out["critical_ratio"] = g.critical_ratio
+        if self.whole_run and self.last_spectra is not None:
+            out["spectra"] = spectra_summary(self.last_spectra)
         return out
 
     def result(self, t1: float) -> dict:
@@ -210,6 +217,8 @@ class Summary:
         out["critical_ratio"] = p["critical_ratio"]
         if self.whole_run:
             out["single_ball_se"] = p["single_ball_hit"]["se"]
+        if "spectra" in p:
+            out["spectra"] = p["spectra"]
         out.update(analysis_window=[self.t0, t1], sim_seconds=t1)
         return out
 
@@ -237,6 +246,9 @@ class SummarySink:
 
     def energy(self, block):
         self.summary.energy(block)
+
+    def spectra(self, spectra):
+        self.summary.spectra(spectra)
 
     def finish(self, summary, status):
         pass

@@ -15,10 +15,10 @@ import functools
 import os
 import sys
 
-from taimill.cli import calibrate, catalog, compare, liggghts, record, report, run, sweep, tui
+from taimill.cli import calibrate, catalog, compare, kinetics, liggghts, record, report, run, sweep, tui
 from taimill.cli.common import EXIT_BAD_INPUT, EXIT_WRITE_REFUSED, Parser
 
-SUBCOMMANDS = (run, calibrate, catalog, sweep, report, record, tui, liggghts, compare)
+SUBCOMMANDS = (run, calibrate, catalog, sweep, report, record, tui, liggghts, compare, kinetics)
 
 
 def version() -> str:

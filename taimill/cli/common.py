@@ -103,7 +103,7 @@ def overrides(a) -> dict:
         "powder.mass_g": a.powder_mass, "seed": a.seed, "duration": getattr(a, "duration", None), "dt": dt,
         "law": a.law, "analysis_start": getattr(a, "analysis_start", None),
         "balls.material": a.ball_material, "balls.diameter_mm": a.ball_diameter, "jar_material": a.jar_material,
-        "plate_radius_mm": a.plate_radius,
+        "plate_radius_mm": a.plate_radius, "softening": getattr(a, "softening", None),
     }
     return {k: v for k, v in given.items() if k not in LIVE_IGNORED or hasattr(a, k)}
 
@@ -135,6 +135,9 @@ def add_overrides(p, live: bool = False):
         g.add_argument("--analysis-start", type=number, help="start of the analysis window (s)")
     g.add_argument("--dt", help="time step in s, or 'auto'")
     g.add_argument("--law", help=LAW_HELP)
+    g.add_argument("--softening", type=number, metavar="F",
+                   help="divide the contact stiffness by F ≥ 1, damping recalibrated to keep the restitution "
+                        "(a longer time step; docs/softening.md says what it changes)")
 
 
 def stations_text(n) -> str:
@@ -184,12 +187,10 @@ def _main_sink_line(m: dict) -> str:
 
 
 def _hot_spot_line(h: dict) -> str:
-    if not h.get("surface"):
-        return ""
-    where = (f"side wall at {h['angle_deg']:.0f}°, z = {h['z'] * 1e3:.1f} mm" if h["surface"] == "side"
-             else f"{h['surface']} at x = {h['x'] * 1e3:.1f}, y = {h['y'] * 1e3:.1f} mm")
-    return (f"\nwear hot spot: {where}, {h['power_per_area']:.4g} W/m² "
-            f"({h['concentration']:.3g}× the wall mean)")
+    from taimill.analysis.spatial import hot_spot_text
+
+    line = hot_spot_text(h)
+    return f"\n{line}" if line else ""
 
 
 def stderr_console():

@@ -207,8 +207,8 @@ def text_report(q: dict) -> str:
               f"slip ratio {_f(q.get('slip_ratio'))}; {crit})",
               f"critical ratio K_c {q['critical_ratio']:.3f}; one-ball hit energy {_f(q['single_ball_hit']['se'], 1e3, ' mJ')}"]
     if h.get("surface"):
-        lines.append(f"wear hot spot: {h['surface']} at {h['angle_deg']:.0f}°"
-                     + (f", z = {h['z'] * 1e3:.1f} mm" if h["surface"] == "side" else "")
-                     + f", {h['power_per_area']:.4g} W/m² ({h['concentration']:.3g}× the wall mean)")
+        from taimill.analysis.spatial import hot_spot_text
+
+        lines.append(hot_spot_text(h))
     return "\n".join(lines)
 

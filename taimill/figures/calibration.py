@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from taimill.figures.layout import legend_outside
 from taimill.store.output import whole_file
 
 
@@ -26,7 +27,7 @@ def _save(fig, path) -> Path:
     fig.tight_layout()
     try:
         with whole_file(path, "figure") as part:
-            fig.savefig(part, dpi=150)
+            fig.savefig(part, dpi=150, bbox_inches="tight")  # the legends outside the axes too
     finally:
         _pyplot().close(fig)
     return path
@@ -49,12 +50,12 @@ def fit_figure(fit: dict, path) -> Path:
     plt = _pyplot()
     rows = fit["rows"]
     h0 = np.array([r["h0_mm"] for r in rows])
-    fig, (a, b) = plt.subplots(2, 1, figsize=(6, 6), sharex=True, gridspec_kw={"height_ratios": (2, 1)})
+    fig, (a, b) = plt.subplots(2, 1, figsize=(9, 6), sharex=True, gridspec_kw={"height_ratios": (2, 1)})  # legend beside
     a.errorbar(h0, [r["e_measured"] for r in rows], yerr=[2 * r["sigma_e"] for r in rows], fmt="o", capsize=3,
                label="measured ±2σ")
     a.plot(h0, [r["e_fit"] for r in rows], "s-", label=f"{fit['law']}, {fit['param']} = {fit['value']:.4g} ± {fit['uncertainty']:.2g} {fit['unit']}")
     a.set(ylabel="restitution e (-)", title=f"{fit['pair']}: fit of {fit['param']} to {Path(fit['data']).name}")
-    a.legend()
+    legend_outside(a, fontsize=8)
     b.axhline(0.0, color="grey", lw=0.8)
     b.bar(h0, [r["residual_mm"] for r in rows], width=0.4 * np.min(np.diff(h0)) if len(h0) > 1 else 10.0)
     b.set(xlabel="drop height h₀ (mm)", ylabel="h*_sim − h*_meas (mm)")
@@ -75,7 +76,7 @@ def sensitivity_figure(sens: dict, path) -> Path:
     ax.set_xticks(x, names)
     ax.set(xlabel="parameter of the normal law", ylabel="change of rebound height h* (%)",
            title=f"{sens['pair']} ({sens['law']}), h₀ = {sens['h0'] * 1e3:g} mm")
-    ax.legend()
+    legend_outside(ax)
     return _save(fig, path)
 
 
@@ -91,10 +92,10 @@ def oblique_figure(obl: dict, path) -> Path:
     a.plot(d, mm("un_final_expected"), "-", label="−e(u̇ₙ)·u̇ₙ, head-on e")
     a.plot(d, mm("un_final_thesis"), "--", label=f"eqs 2.3/2.4, e = {obl['e_nominal']:g}")
     a.set(xlabel="offset Δ (mm)", ylabel="final normal relative velocity (mm/s)", title=f"{obl['pair']} ({obl['law']})")
-    a.legend()
+    legend_outside(a, below=True, gap=0.45, fontsize=8)
     b.plot(d, mm("ut_final"), "o", label="simulated")
     b.plot(d, mm("ut"), "-", label="initial (eq 2.1: unchanged)")
     b.set(xlabel="offset Δ (mm)", ylabel="final tangential relative velocity (mm/s)",
           title=f"{obl['speed'] * 1e3:g} mm/s, {'with' if obl['friction'] else 'no'} friction")
-    b.legend()
+    legend_outside(b, below=True, gap=0.45, fontsize=8)
     return _save(fig, path)

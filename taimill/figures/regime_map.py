@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from taimill.figures.layout import legend_outside
 from taimill.analysis.regime import MAP_REGIMES, map_regime, slip_ratio
 from taimill.analysis.theory import critical_ratio, pinning_friction
 from taimill.store.output import whole_file
@@ -126,7 +127,8 @@ def regime_map(rows: list[dict], title: str = ""):
         handles = [Patch(color=COLOURS[n], label=n) for n in MAP_REGIMES]
         handles += [plt.Line2D([], [], color="k", ls="-", label="contours: stress-event power"),
                     plt.Line2D([], [], color="#7f2704", ls="--", label="contours: persistent friction power")]
-        ax.legend(handles=ax.get_legend_handles_labels()[0] + handles, fontsize=7, loc="lower left", framealpha=0.9)
+        legend_outside(ax, below=True, gap=0.45, handles=ax.get_legend_handles_labels()[0] + handles, fontsize=7, ncol=2,
+                       frameon=False)
     if title:
         fig.suptitle(title, fontsize=11)
     fig.tight_layout()
@@ -140,7 +142,7 @@ def save_regime_map(rows: list[dict], path, title: str = "") -> Path:
 
     try:
         with whole_file(path, "figure") as part:
-            fig.savefig(part, dpi=130)
+            fig.savefig(part, dpi=130, bbox_inches="tight")  # the legends under the maps too
     finally:
         plt.close(fig)
     return path

@@ -12,11 +12,14 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.colors import LogNorm  # noqa: E402
+from matplotlib.colors import ListedColormap, LogNorm  # noqa: E402
 
 from taimill.analysis.events import ENERGY_BINS, SPEED_BINS, log_pdf  # noqa: E402
 from taimill.analysis.run import RunAnalysis  # noqa: E402
+from taimill.analysis.spatial import MIN_EVENTS, uniform  # noqa: E402
+from taimill.figures.layout import colorbar_beside, fit_log, legend_outside, occupied  # noqa: E402
 from taimill.store.output import whole_file  # noqa: E402
+from taimill.figures.spectra import spectra_figure  # noqa: E402
 
 FORMATS = ("png", "svg", "pdf")
 MM = 1e3
@@ -71,7 +74,7 @@ def draw_trajectories_top(ax, a: RunAnalysis, balls: int = 3, seconds: float = 0
         ax.plot(stored[:, 0], stored[:, 1], ".", ms=2.5, color=line.get_color())
     ax.set(xlabel="x (mm, jar frame)", ylabel="y (mm)",
            title=f"Trajectories, top view ({seconds:g} s; dots: stored frames)")
-    ax.legend(loc="upper right")
+    legend_outside(ax)
 
 
 def draw_trajectories_section(ax, a: RunAnalysis, balls: int = 3, seconds: float = 0.5):
@@ -91,32 +94,53 @@ def draw_gr(ax, a: RunAnalysis):
     ax.axhline(1.0, color="0.4", ls="--", lw=0.8, label="uniform")
     ax.set(xlabel="distance from the jar axis r (mm)", ylabel="g(r) (–)",
            title=f"Cylindrical distribution, 1/σ = {a.density.randomness_index:.3g}")
-    ax.legend()
+    legend_outside(ax)
 
 
 def draw_velocity_pdfs(ax, a: RunAnalysis):
     centres = np.sqrt(SPEED_BINS[1:] * SPEED_BINS[:-1]) * MM
     for hist, name, ls in ((a.event.hist_un, "normal u̇n", "-"), (a.event.hist_ut, "tangential u̇t", "--")):
         for k, kind in enumerate(("ball–ball", "ball–wall")):
-            ax.plot(centres, log_pdf(hist[k], SPEED_BINS), ls=ls, color=f"C{k}", label=f"{name}, {kind}")
+            if hist[k].sum():
+                ax.plot(centres, log_pdf(hist[k], SPEED_BINS), ls=ls, color=f"C{k}", label=f"{name}, {kind}")
     ax.set(xscale="log", xlabel="onset relative speed (mm/s)", ylabel="probability density (1/decade)",
            title="Onset velocity distributions")
-    ax.legend()
+    fit_log(ax, occupied(SPEED_BINS, a.event.hist_un, a.event.hist_ut) * MM)
+    _legend_or_none(ax, "stress event")
 
 
 def draw_se(ax, a: RunAnalysis):
     centres = np.sqrt(ENERGY_BINS[1:] * ENERGY_BINS[:-1]) * MM
     n = a.event.hist_se_n.sum(axis=0)
     t = a.event.hist_se_t.sum(axis=0)
-    ax.plot(centres, log_pdf(n, ENERGY_BINS), label="normal")
-    ax.plot(centres, log_pdf(t, ENERGY_BINS), label="tangential")
+    for hist, label, c in ((n, "normal", "C0"), (t, "tangential", "C1")):
+        if hist.sum():
+            ax.plot(centres, log_pdf(hist, ENERGY_BINS), color=c, label=label)
     r = a.event.result(a.tau)
     for key, c in (("mean_se_normal", "C0"), ("mean_se_tangential", "C1")):
         if np.isfinite(r[key]):
             ax.axvline(r[key] * MM, color=c, ls=":", lw=1)
     ax.set(xscale="log", xlabel="stress energy per event (mJ)", ylabel="probability density (1/decade)",
            title=f"Stress energy ({_estimator(a)}); dotted: means")
-    ax.legend()
+    fit_log(ax, occupied(ENERGY_BINS, n, t) * MM)
+    _legend_or_none(ax, "stress event")
+
+
+def _legend_or_none(ax, what: str):
+    """The legend outside the axes, or, with nothing drawn, say so on them."""
+    if ax.get_legend_handles_labels()[0]:
+        legend_outside(ax)
+    else:
+        _nothing(ax, what)
+
+
+def _nothing(ax, what: str):
+    ax.text(0.5, 0.5, f"no {what} in the analysis window", ha="center", va="center", color="0.35",
+            transform=ax.transAxes)
+
+
+def _number(v: float) -> str:
+    return f"{v:.3g}" if np.isfinite(v) else "–"
 
 
 def _estimator(a: RunAnalysis) -> str:
@@ -140,7 +164,7 @@ def draw_mechanisms(ax, a: RunAnalysis):
     ax.set(ylabel="dissipated power (W)", title=f"Where the power goes: {a.energy['dissipated_power']:.3g} W; "
            f"main sink {m['mechanism']} ({m['share']:.0%})")
     ax.title.set_fontsize(9)
-    ax.legend()
+    legend_outside(ax)
 
 
 def draw_dissipation_spectra(ax, a: RunAnalysis):
@@ -152,8 +176,8 @@ def draw_dissipation_spectra(ax, a: RunAnalysis):
                 ax.plot(centres, log_pdf(hist[k], ENERGY_BINS), ls=ls, color=f"C{k}", label=f"{name}, {kind}")
     ax.set(xscale="log", xlabel="energy dissipated per event (mJ)", ylabel="probability density (1/decade)",
            title=f"Dissipated-energy spectra ({_estimator(a)})")
-    if ax.lines:
-        ax.legend()
+    fit_log(ax, occupied(ENERGY_BINS, a.event.hist_diss_n, a.event.hist_diss_t) * MM)
+    _legend_or_none(ax, "stress event")
 
 
 def draw_contact_map(ax, a: RunAnalysis, fig):
@@ -165,7 +189,9 @@ def draw_contact_map(ax, a: RunAnalysis, fig):
     _wall_axes(ax, a)
     ax.set_title("Ball–jar impacts on the unrolled side wall")
     if len(un):
-        fig.colorbar(sc, ax=ax, label="onset normal speed u̇n (mm/s)")
+        colorbar_beside(fig, sc, ax, "onset normal speed u̇n (mm/s)")
+    else:
+        _nothing(ax, "ball–jar impact")
 
 
 def _wall_axes(ax, a: RunAnalysis):
@@ -178,28 +204,73 @@ def _wall_axes(ax, a: RunAnalysis):
     top.set_xlabel("polar angle in the jar frame")
 
 
+SPARSE_GREY = "0.82"  # wall-map cells with too few events to show (MIN_EVENTS)
+HOT_COLOUR = "c"
+
+
 def draw_wear_map(axes, a: RunAnalysis, fig):
-    """axes: (side, floor, lid)."""
-    tau = a.tau
-    both = {s: a.wall.density("impact", s, tau) + a.wall.density("friction", s, tau) for s in ("side", "floor", "lid")}
-    vals = np.concatenate([v[np.isfinite(v) & (v > 0)] for v in both.values()])
-    norm = LogNorm(vmin=max(vals.min(), vals.max() * 1e-4), vmax=vals.max()) if len(vals) else None
+    """axes: (side, floor, lid). Cells with fewer than MIN_EVENTS events are grey (their
+    power per area is counting noise); the hot spot (WallMap.hot_spot) is marked by a
+    cross, or, when no cell stands out of its band, that band is outlined."""
+    tau, w = a.tau, a.wall
+    power = {s: w.power(s, tau) for s in ("side", "floor", "lid")}
+    shown = {s: np.where(w.sampled(s) & (power[s] > 0), power[s], np.nan) for s in power}
+    vals = np.concatenate([v[np.isfinite(v)] for v in shown.values()])
+    norm = LogNorm(vmin=vals.min(), vmax=vals.max()) if len(vals) else None
+    hot = w.hot_spot(tau)
+    band = hot.get("band", {})
     ax = axes[0]
-    im = ax.pcolormesh(a.wall.s_edges * MM, a.wall.z_edges * MM, np.ma.masked_less_equal(both["side"].T, 0), norm=norm,
-                       cmap="inferno")
+    _grey(ax, w.s_edges * MM, w.z_edges * MM, np.ones_like(w.side_area, bool), shown["side"])
+    im = ax.pcolormesh(w.s_edges * MM, w.z_edges * MM, np.ma.masked_invalid(shown["side"].T), norm=norm, cmap="inferno")
     _wall_axes(ax, a)
     ax.set_title("Wear indicator: impact + friction power per area, side wall")
-    hot = a.wall.hot_spot(tau)
-    if hot.get("surface") == "side":
-        ax.plot(hot["arc_length"] * MM, hot["z"] * MM, "c+", ms=12, mew=2)
-    e = a.wall.xy_edges * MM
+    if hot.get("kind", "spot") == "spot" and hot.get("surface") == "side":
+        ax.plot(hot["arc_length"] * MM, hot["z"] * MM, "+", color=HOT_COLOUR, ms=12, mew=2)
+    elif "z_range" in band:
+        lo, hi = np.array(band["z_range"]) * MM
+        ax.add_patch(plt.Rectangle((0, lo), w.s_edges[-1] * MM, hi - lo, fill=False, ec=HOT_COLOUR, lw=1.5))
+    e = w.xy_edges * MM
     for ax, s in zip(axes[1:], ("floor", "lid")):
-        ax.pcolormesh(e, e, np.ma.masked_less_equal(both[s].T, 0), norm=norm, cmap="inferno")
+        _clip_to_jar(ax, a, _grey(ax, e, e, w.disc_area > 0, shown[s]),
+                     ax.pcolormesh(e, e, np.ma.masked_invalid(shown[s].T), norm=norm, cmap="inferno"))
         _outline(ax, a)
-        if hot.get("surface") == s:
-            ax.plot(hot["x"] * MM, hot["y"] * MM, "c+", ms=12, mew=2)
+        if hot.get("kind", "spot") == "spot" and hot.get("surface") == s:
+            ax.plot(hot["x"] * MM, hot["y"] * MM, "+", color=HOT_COLOUR, ms=12, mew=2)
+        elif band.get("surface") == s:
+            for r in np.array(band["r_range"]) * MM:
+                ax.add_patch(plt.Circle((0, 0), r, fill=False, ec=HOT_COLOUR, lw=1.2))
         ax.set(xlabel="x (mm)", ylabel="y (mm)", title=s)
-    fig.colorbar(im, ax=list(axes), label="W/m² (impact ½mu̇n² + friction work)", shrink=0.8)
+    label = "W/m² (impact ½mu̇n² + friction work)"
+    if norm is not None:
+        colorbar_beside(fig, im, axes[0], label)
+        colorbar_beside(fig, im, axes[2], label)
+    else:
+        _nothing(axes[0], f"wall cell with {MIN_EVENTS} events or more")
+    handles = [plt.Rectangle((0, 0), 1, 1, fc=SPARSE_GREY, ec="none", label=f"fewer than {MIN_EVENTS} events: not shown")]
+    if hot.get("kind", "spot") == "spot" and hot.get("surface"):
+        handles.append(plt.Line2D([], [], ls="none", marker="+", color=HOT_COLOUR, ms=10, mew=2,
+                                  label=f"hot spot, {hot['over_band']:.3g}× the rest of its band" if "over_band" in hot
+                                  else "hot spot"))
+    elif band:
+        around = "wall" if band["surface"] == "side" else "axis"
+        why = (f"uniform around the {around}, no hot spot" if uniform(hot) else
+               f"no hot spot found; {band['sampled_share']:.0%} of its cells with ≥ {MIN_EVENTS} events")
+        handles.append(plt.Rectangle((0, 0), 1, 1, fill=False, ec=HOT_COLOUR, lw=1.5, label=f"most wear: this band ({why})"))
+    legend_outside(axes[0], handles=handles, below=True, gap=0.45, ncol=2, frameon=False)
+
+
+def _grey(ax, xe, ye, inside: np.ndarray, shown: np.ndarray):
+    """Grey the cells inside the jar that are not shown (too few events)."""
+    sparse = inside & ~np.isfinite(shown)
+    return ax.pcolormesh(xe, ye, np.ma.masked_where(~sparse.T, np.ones(sparse.T.shape)),
+                         cmap=ListedColormap([SPARSE_GREY]), vmin=0, vmax=2)
+
+
+def _clip_to_jar(ax, a: RunAnalysis, *meshes):
+    """Floor and lid cells cut by the wall are drawn only inside the jar's profile."""
+    jar = plt.Polygon(a.geom.profile.outline * MM, closed=True, transform=ax.transData, fc="none", ec="none")
+    for m in meshes:
+        m.set_clip_path(jar)
 
 
 def draw_energy(ax, a: RunAnalysis):
@@ -220,7 +291,7 @@ def draw_energy(ax, a: RunAnalysis):
         ax2.set_ylabel("balance error (% of drive work)", color="0.4")
         axes.append(ax2)  # drawn on top: the legend goes there, not hidden by its curve
     handles = [h for axis in axes for h in axis.get_legend_handles_labels()[0]]
-    axes[-1].legend(handles=handles, loc="upper left")
+    legend_outside(axes[-1], handles=handles, below=True, gap=0.5, ncol=2)
 
 
 def _caption(a: RunAnalysis, what: str) -> str:
@@ -245,10 +316,13 @@ FIGURES = {
     "velocities": "Probability densities of the onset normal and tangential relative speeds (log bins)",
     "stress_energy": "Distribution of the stress energy per collision event, normal and tangential",
     "contact_map": "Ball–jar contact map: impact points on the unrolled side wall coloured by onset normal speed",
-    "wear_map": "Wear map: normal impact energy plus friction work per unit wall area and time",
+    "wear_map": "Wear map: normal impact energy plus friction work per unit wall area and time; grey: cells with "
+                f"fewer than {MIN_EVENTS} events (too few to show); cross: a hot spot standing out of its band, "
+                "or outlined: the band with most wear when none does",
     "energy": "Energy budget over time: drive work, dissipation, mechanical energy, balance error",
     "mechanisms": "Dissipated power by contact kind, class (impact or persistent) and part (normal or friction)",
     "dissipation_spectra": "Distribution of the energy dissipated per stress event, normal and by friction, per kind",
+    "energy_spectra": "Collisions per second per decade of energy: dissipated (normal, friction) and kinematic (normal, tangential)",
     "overview": "Overview of the run",
 }
 
@@ -281,13 +355,16 @@ def write_report(a: RunAnalysis, out_dir, fmt: str = "png") -> list[Path]:
     gs = fig.add_gridspec(2, 2, height_ratios=(1, 1.4))
     draw_wear_map((fig.add_subplot(gs[0, :]), fig.add_subplot(gs[1, 0]), fig.add_subplot(gs[1, 1])), a, fig)
     save("wear_map", fig)
+    if a.summary.last_spectra is not None:
+        save("energy_spectra", spectra_figure([("this run", a.summary.last_spectra)],
+                                              f"Energy spectra of the collision events, {a.t0:g}–{a.t1:g} s"))
     save("overview", overview(a))
     return paths
 
 
 def overview(a: RunAnalysis):
-    fig = plt.figure(figsize=(16, 19), layout="constrained")
-    gs = fig.add_gridspec(5, 3, height_ratios=(1, 1, 0.8, 1, 1))
+    fig = plt.figure(figsize=(16, 23), layout="constrained")
+    gs = fig.add_gridspec(6, 3, height_ratios=(1, 1, 0.8, 0.9, 1, 0.9))
     draw_trajectories_top(fig.add_subplot(gs[0, 0]), a)
     draw_gr(fig.add_subplot(gs[0, 1]), a)
     draw_velocity_pdfs(fig.add_subplot(gs[0, 2]), a)
@@ -295,14 +372,14 @@ def overview(a: RunAnalysis):
     draw_energy(fig.add_subplot(gs[1, 1]), a)
     draw_trajectories_section(fig.add_subplot(gs[1, 2]), a)
     draw_contact_map(fig.add_subplot(gs[2, :]), a, fig)
-    draw_wear_map((fig.add_subplot(gs[3, 0]), fig.add_subplot(gs[3, 1]), fig.add_subplot(gs[3, 2])), a, fig)
-    draw_mechanisms(fig.add_subplot(gs[4, :2]), a)
+    draw_wear_map((fig.add_subplot(gs[3, :]), fig.add_subplot(gs[4, 0]), fig.add_subplot(gs[4, 1])), a, fig)
     draw_dissipation_spectra(fig.add_subplot(gs[4, 2]), a)
+    draw_mechanisms(fig.add_subplot(gs[5, :]), a)
     q = a.quantities()
     e = q["event_estimator"]
     sink = f" (main sink: {q['main_sink']['mechanism']})" if q.get("main_sink") else ""
     fig.suptitle(f"K = {a.geom.ratio:.3g}, Ω = {q['plate_rpm']:.4g} rpm — {q['regime']} "
-                 f"(confidence {q['regime_confidence']:.2f}); ⟨SE⟩ = {e['mean_se'] * MM:.3g} mJ, "
+                 f"(confidence {q['regime_confidence']:.2f}); ⟨SE⟩ = {_number(e['mean_se'] * MM)} mJ, "
                  f"E_I/τ = {e['impact_power']:.3g} W, {e['collision_rate']:.4g} /s ({_estimator(a)}); "
                  f"dissipated {q['dissipated_power']:.3g} W{sink}", fontsize=11)
     return fig

@@ -38,6 +38,7 @@ from taimill.errors import ConfigError
 from taimill.model.files import csv_cells, read_text
 from taimill.analysis.sweep import (REGIMES, SweepAxes, axis_label, axis_scale, curves, first_value, mean_band,
                                     regime_fractions, sweep_axes, value_text, x_values)
+from taimill.figures.layout import legend_outside
 from taimill.figures.sweep_map import MAPS, map_figure, mark_critical
 from taimill.store.output import whole_file
 
@@ -49,16 +50,21 @@ FIGURES = (
     ("impact_power", "Impact power E_I/τ, eq 3.8, one jar (thesis Figs 3.7a, 4.13)", [("impact_power", "total")], "impact power (W)", 1.0),
     ("randomness", "Randomness index 1/σ of g(r), eq 3.9 (thesis Fig 3.8)", [("randomness_index", "1/σ")], "1/σ", 1.0),
     ("normal_fraction", "Normal share of the stress energy", [("normal_fraction", "SE_n / SE")], "normal fraction", 1.0),
+    ("dissipation", "Dissipated power by class: impacts and persistent contacts (normal and friction work), one jar",
+     [("dissipated_power_impact", "impacts"), ("dissipated_power_persistent", "persistent contacts")], "dissipated power (W)", 1.0),
+    ("shear", "Gentle / shear view: friction power of persistent contacts per m² of jar wall",
+     [("shear_power_persistent_wall_W_per_m2", "persistent friction on the wall")], "power per wall area (W/m²)", 1.0),
 )
 K_LABEL = "K = ω/Ω + 1 (jar spin / plate spin; |K| grows to the right)"
 REGIME_MARKERS = {"cascading": "s", "cataracting": "^", "rolling": "v"}  # any other label: "x"
 MIXED_LABEL = "mean over replicas in different regimes"
+LEGEND_WIDTH = 2.5  # inches added to a figure for the legends outside its panels
 
 
 def figure_stems(table: dict, overlay: bool = False) -> list[str]:
     """The file stems report_sweep writes for this sweep table."""
     ax = sweep_axes(table)
-    return ([f[0] for f in FIGURES] + ["regimes"] + ([m[0] for m in MAPS] if ax.y else [])
+    return ([f[0] for f in FIGURES] + ["regimes", "energy_spectra"] + ([m[0] for m in MAPS] if ax.y else [])
             + (["overlay"] if overlay else []))
 
 
@@ -89,6 +95,7 @@ def report_sweep(path, out_dir, fmt: str = "png", overlay=None) -> list[Path]:
         fig = sweep_figure(table, title, panels, ylabel, scale, peaks, axes=axes)
         written.append(_save(fig, out_dir / f"{stem}.{fmt}"))
     written.append(_save(_regime_figure(table, axes), out_dir / f"regimes.{fmt}"))
+    written.append(_save(_spectra_figure(store, table), out_dir / f"energy_spectra.{fmt}"))
     if axes.y:
         for stem, column, label, scale in MAPS:
             written.append(_save(map_figure(table, column, label, scale, axes), out_dir / f"{stem}.{fmt}"))
@@ -97,6 +104,29 @@ def report_sweep(path, out_dir, fmt: str = "png", overlay=None) -> list[Path]:
                            [("mean_se", "total")], "mean SE (mJ)", 1e3, peaks, measured, axes=axes)
         written.append(_save(fig, out_dir / f"overlay.{fmt}"))
     return written
+
+
+SPECTRA_LINES = 8  # points overlaid in the energy spectra figure (evenly spread over the plan)
+
+
+def _spectra_figure(store, table):
+    """The energy spectra of up to SPECTRA_LINES points, overlaid, each labelled by its
+    swept values (taimill.figures.spectra)."""
+    from taimill.figures.spectra import spectra_figure
+
+    points = [int(i) for i in table["point"]]
+    if len(points) > SPECTRA_LINES:
+        points = [points[round(k * (len(points) - 1) / (SPECTRA_LINES - 1))] for k in range(SPECTRA_LINES)]
+    items = []
+    for i in points:
+        sp = store.spectra(i)
+        if sp is not None:
+            values = store.plan[i].get("values", {})
+            label = ", ".join(f"{k} {v:g}" if isinstance(v, float) else f"{k} {v}" for k, v in values.items()
+                              if k not in ("replica",)) or f"point {i}"
+            items.append((label, sp))
+    shown = "" if len(points) == len(table["point"]) else f" ({len(items)} of {len(table['point'])} points)"
+    return spectra_figure(items, f"Energy spectra of the collision events{shown}")
 
 
 def store_axes(store, table) -> SweepAxes:
@@ -136,7 +166,7 @@ def sweep_figure(table, title, panels, ylabel, scale, peaks=(), measured=None, a
     import matplotlib.pyplot as plt
 
     axes = axes or sweep_axes(table)
-    fig, plots = plt.subplots(1, len(panels), figsize=(6.4 * len(panels), 4.6), squeeze=False)
+    fig, plots = plt.subplots(1, len(panels), figsize=(6.4 * len(panels) + LEGEND_WIDTH, 4.6), squeeze=False)
     groups = curves(table, axes)
     for ax, (column, panel) in zip(plots[0], panels):
         drawn: set[str] = set()
@@ -151,14 +181,15 @@ def sweep_figure(table, title, panels, ylabel, scale, peaks=(), measured=None, a
         _mixed_legend(ax, drawn)
         if axes.x == "ratio":  # landmarks of K
             _mark_peaks(ax, peaks, column, scale)
-            mark_critical(ax, table)
+            mark_critical(ax, table, axes)
         ax.set_title(panel, fontsize=10)
         _x_axis(ax, table, axes)
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
         if measured is not None:
             _overlay(ax, measured)
-        ax.legend(fontsize=8, loc="upper left")
+        else:
+            legend_outside(ax, fontsize=8)
     if any(np.isfinite(band(table, r, panels[0][0], axes.x)[2]).any() for r in groups.values()):
         title += " — mean of replicas, 95 % band"
     if any(g["bistable"] for rows in groups.values() for g in regime_groups(table, rows, axes)):
@@ -214,7 +245,8 @@ def _regime_figure(table, axes: SweepAxes | None = None):
     import matplotlib.pyplot as plt
 
     axes = axes or sweep_axes(table)
-    fig, plots = plt.subplots(1, len(REGIMES), figsize=(5.2 * len(REGIMES), 4.2), squeeze=False, sharey=True)
+    fig, plots = plt.subplots(1, len(REGIMES), figsize=(5.2 * len(REGIMES) + LEGEND_WIDTH, 4.2), squeeze=False,
+                              sharey=True)
     per_curve = {label: regime_groups(table, rows, axes) for label, rows in curves(table, axes).items()}
     any_mixed = any(g["bistable"] for groups in per_curve.values() for g in groups)
     for ax, regime in zip(plots[0], REGIMES):
@@ -227,12 +259,12 @@ def _regime_figure(table, axes: SweepAxes | None = None):
         if any_mixed:
             ax.plot([], [], "o", ms=12, mfc="none", mec="k", mew=1.2, label="replicas in different regimes")
         if axes.x == "ratio":
-            mark_critical(ax, table)
+            mark_critical(ax, table, axes)
         ax.set_title(regime, fontsize=10)
         _x_axis(ax, table, axes)
         ax.set_ylim(-0.05, 1.05)
         ax.grid(alpha=0.3)
-    plots[0][0].legend(fontsize=8, loc="best")
+    legend_outside(plots[0][-1], handles=plots[0][0].get_legend_handles_labels()[0], fontsize=8)
     plots[0][0].set_ylabel("share of the replicas")
     fig.suptitle(f"Motion regime of the replicas at each {axis_label(axes.x).split(' (')[0]} (taimill.analysis.regime)",
                  fontsize=11)
@@ -257,7 +289,8 @@ def _overlay(ax, measured):
             twin.set_ylabel(f"measured ({unit.group(1)})")
     if not twin.get_ylabel():
         twin.set_ylabel("measured")
-    twin.legend(fontsize=8, loc="upper right")
+    handles = [h for a in (ax, twin) for h in a.get_legend_handles_labels()[0]]
+    legend_outside(twin, handles=handles, fontsize=8, gap=0.7)  # right of the twin axis' labels
 
 
 def _bare(name: str) -> str:
@@ -270,7 +303,7 @@ def _save(fig, path: Path) -> Path:
 
     try:
         with whole_file(path, "figure") as part:
-            fig.savefig(part, dpi=120)
+            fig.savefig(part, dpi=120, bbox_inches="tight")  # the legends outside the panels too
     finally:
         plt.close(fig)
     return path

@@ -14,6 +14,7 @@ from taimill.analysis.regime import MAP_REGIMES, map_regime, slip_ratio
 from taimill.analysis.sweep import (SweepAxes, axis_label, axis_scale, curves, first_value, mean_band, sweep_axes,
                                     value_text, x_values)
 from taimill.analysis.theory import critical_ratio
+from taimill.figures.layout import legend_outside
 
 # maps of a sweep over two numeric axes: (file stem, column, colour bar label, scale)
 MAPS = (("map_impact_power", "impact_power", "impact power E_I/τ, one jar (W)", 1.0),
@@ -74,13 +75,14 @@ def map_figure(table: dict, column: str, label: str, scale: float = 1.0, axes: S
         if np.all(ux <= 0):
             ax.invert_xaxis()
         if axes.x == "ratio":
-            mark_critical(ax, table)
+            mark_critical(ax, table, axes)
         if panel != "all points":
             ax.set_title(panel, fontsize=10)
         fig.colorbar(mesh, ax=ax, label=label)
     handles = [plt.Line2D([], [], ls="none", marker=CLASS_MARKERS.get(c, "x"), mfc="none", mec="k", label=f"regime: {c}")
                for c in (*MAP_REGIMES, "unknown") if c in shown]
-    plots[0][0].legend(handles=handles + plots[0][0].get_legend_handles_labels()[0], fontsize=7, loc="best", framealpha=0.9)
+    legend_outside(plots[0][-1], below=True, gap=0.5, handles=handles + plots[0][0].get_legend_handles_labels()[0],
+                   fontsize=7, ncol=3, frameon=False)
     fixed = ", ".join(value_text(c, first_value(table[c])) for c in axes.fixed if c not in (axes.x, axes.y))
     fig.suptitle(f"{label}; markers: regime class" + (f"\n{fixed}" if fixed else ""), fontsize=10)
     fig.tight_layout()
@@ -99,9 +101,25 @@ def _edges(v: np.ndarray) -> np.ndarray:
     return np.concatenate([[v[0] - (mid[0] - v[0])], mid, [v[-1] + (v[-1] - mid[-1])]])
 
 
-def mark_critical(ax, table):
-    """K_c = -√(R_p / (R_jar - r)) for each geometry in the sweep (docs/model.md)."""
-    geoms = {(float(a), float(b), float(c)) for a, b, c in zip(table["plate_radius"], table["jar_radius"], table["ball_radius"])}
-    for n, g in enumerate(sorted(geoms)):
-        kc = critical_ratio(*g)
-        ax.axvline(kc, color="0.3", ls="--", lw=1, label="K_c, one ball" if n == 0 else None)
+CRITICAL_STYLES = ("--", ":", "-.", (0, (6, 2, 1, 2, 1, 2)), (0, (1, 3)))
+
+
+def mark_critical(ax, table, axes: SweepAxes | None = None):
+    """K_c = -√(R_p / (R_jar - r)) for each geometry in the sweep (docs/model.md): one
+    line per distinct K_c, each its own legend entry; with several, each names the
+    values of the swept axes (axes.curves) that give it ("d = 8 mm"), leaving out an
+    axis whose every value shares the line (jars of one radius)."""
+    axes = axes or sweep_axes(table)
+    geoms = zip(table["plate_radius"], table["jar_radius"], table["ball_radius"])
+    kcs = np.array([round(critical_ratio(float(a), float(b), float(c)), 6) for a, b, c in geoms])
+    lines = sorted(set(kcs.tolist()))
+    for n, kc in enumerate(lines):
+        parts = []
+        for c in axes.curves if len(lines) > 1 else ():
+            column = [_item(v) for v in table[c]]
+            mine = list(dict.fromkeys(v for v, k in zip(column, kcs) if k == kc))
+            if len(mine) < len(set(column)):
+                parts += [value_text(c, v) for v in mine]
+        whose = f" ({', '.join(parts)})" if parts else ""
+        ax.axvline(kc, color="0.3", ls=CRITICAL_STYLES[n % len(CRITICAL_STYLES)], lw=1,
+                   label=f"K_c = {kc:.2f}, one ball{whose}")

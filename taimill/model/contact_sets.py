@@ -18,6 +18,8 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from taimill.errors import ConfigError
 from taimill.model import laws as laws_np
 from taimill.model import rules
@@ -224,3 +226,28 @@ def pair_contact(pair: str, radius: float | None = None, law: str | None = None,
         raise ConfigError(source, "law", law, f"must be one of {', '.join(LAW_NAMES)}")
     bb, bw = contact_laws(contact_id, law, ball, jar, source, contact, notes)
     return ball, jar, bb, bw, friction
+
+
+def soften(law: NormalLaw, factor: float) -> NormalLaw:
+    """The law with its stiffness divided by `factor` (≥ 1; DEM practice to lengthen the
+    time step: a Hertz contact lasts factor^(2/5) longer), keeping its restitution: the
+    full-damping overlap d grows as an impact's peak overlap does, factor^(1/(n+1)), and
+    the damping c is chosen so that a simulated head-on impact at u_ref rebounds as the
+    stiff law's does. A law whose damping depends on the overlap only through u/d
+    (adams-impact) or as a power of the overlap times √(k m) (the Hertz dampers) is then
+    the stiff law on a stretched length and time scale, and keeps its restitution at
+    every impact speed (tests/test_spectra.py checks it from 5 cm/s to 4 m/s). Mindlin's
+    tangential stiffness kt is divided by the same factor. factor 1: the law itself."""
+    if factor == 1.0:
+        return law
+    model = law.model
+    e = float(laws_np.simulate_impact(model, law.k, law.c, law.d, law.m_eff, law.u_ref)["e"][0])
+    k = law.k / factor
+    d = law.d * factor ** (1.0 / (law.n + 1.0))
+    lo, hi = 0.0, law.c  # a softer contact needs less damping for the same rebound
+    for _ in range(5):  # e falls as c grows: 17-point grids, each round 16× narrower
+        grid = np.linspace(lo, hi, 17)
+        got = laws_np.simulate_impact(model, k, grid, d, law.m_eff, law.u_ref)["e"]
+        i = int(np.argmax(got <= e)) if (got <= e).any() else len(grid) - 1
+        lo, hi = grid[max(i - 1, 0)], grid[i]
+    return dataclasses.replace(law, k=k, c=0.5 * (lo + hi), d=d, kt=law.kt / factor)

@@ -17,7 +17,7 @@ from taimill.errors import ConfigError
 from taimill.model import charge, files
 from taimill.model import rules
 from taimill.model.contact.registry import NAMES as LAW_NAMES
-from taimill.model.contact_sets import NormalLaw, contact_laws
+from taimill.model.contact_sets import NormalLaw, contact_laws, soften
 from taimill.model.drive import Drive
 from taimill.model.jars import Jar, load_jar
 from taimill.model import mills
@@ -35,7 +35,7 @@ GRAVITY = 9.81  #: m/s²
 KINDS = ("ball_ball", "ball_wall")
 # The keys of each kind of table (unknown keys are errors, reported with the nearest known one)
 PRESET_KEYS = ("mill", "jar", "jar_volume_ml", "jar_material", "pair", "plate_rpm", "ratio", "jar_rpm", "duration",
-               "analysis_start", "dt", "seed", "law", "initial_positions", "ramp_time", "plate_radius_mm", "gravity", "balls",
+               "analysis_start", "dt", "seed", "law", "softening", "initial_positions", "ramp_time", "plate_radius_mm", "gravity", "balls",
                "powder", "outputs", "friction",
                *(f"pair_{k}" for k in KINDS), *(f"friction_{k}" for k in KINDS))
 BALLS_KEYS = ("count", "filling", "material", "radius_mm", "diameter_mm")
@@ -44,7 +44,7 @@ POWDER_KEYS = ("mass_g", "ball_to_powder")
 EXCLUSIVE = {"ratio": "jar_rpm", "jar_rpm": "ratio", "balls.count": "balls.filling", "balls.filling": "balls.count",
              "powder.mass_g": "powder.ball_to_powder", "jar": "jar_volume_ml", "jar_volume_ml": "jar",
              "balls.radius_mm": "balls.diameter_mm", "balls.diameter_mm": "balls.radius_mm"}
-OUTPUTS_KEYS = ("trajectory_rate",)
+OUTPUTS_KEYS = ("trajectory_rate", "events")
 
 INLINE_POSITIONS = 1000  # balls; a resolved config lists at most this many start positions
 
@@ -74,6 +74,10 @@ class Preset:
     #: assumptions, implausible but allowed values (the loader appends; cli prints them)
     warnings: tuple[str, ...] = field(default=(), compare=False)
     mill: Mill | None = None  #: the planetary mill (its gear, plate speeds, R_p unless the preset gives plate_radius_mm)
+    #: what is stored of the collision events: "rows" (one per event) or "spectra" (the
+    #: energy spectra only: large mills; rules.events_output)
+    events_output: str = "rows"
+    softening: float = 1.0  #: contact stiffness divided by this (contact_sets.soften); 1: as measured
 
     @property
     def frictions(self) -> tuple[Friction, Friction]:
@@ -172,6 +176,10 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     friction, wall_friction = frictions[0], (frictions[1] if frictions[1] != frictions[0] else None)
     law = t.get("law", None, allowed=LAW_NAMES)
     ball_ball, ball_wall = contact_laws(contact, law, balls, jar, source, notes=warnings)
+    softening = t.get("softening", 1.0, lo=1.0, hi=rules.SOFTENING_MAX)
+    if softening != 1.0:
+        ball_ball, ball_wall = soften(ball_ball, softening), soften(ball_wall, softening)
+        warnings.append(rules.softening_note(softening))
 
     r = mill.plate_range
     plate_rpm = t.get("plate_rpm", **(r.bounds if mill.plate_rpm_max is None else {}))
@@ -229,9 +237,11 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
 
     out = t.table("outputs", required=False, known=OUTPUTS_KEYS)
     rate, rate_source = 100.0, source
+    events = rules.events_output(balls.count)
     if out is not None:
         rate = out.get("trajectory_rate", 100.0, lo=0, lo_open=True)
         rate_source = out.where("trajectory_rate")
+        events = out.get("events", events, allowed=rules.EVENT_OUTPUTS)
         out.done()
     rules.frames_fit(rate_source, t.where("duration"), rate, dt, duration,
                      blame_duration="duration" in overridden and "outputs.trajectory_rate" not in overridden)
@@ -250,7 +260,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     return Preset(
         source, jar, balls, pair, friction, ball_ball, ball_wall, drive, plate_radius,
         duration, analysis_start, dt, is_auto, seed, rate, gravity, init, wall_friction, powder=powder,
-        warnings=tuple(warnings), mill=mill,
+        warnings=tuple(warnings), mill=mill, events_output=events, softening=softening,
     )
 
 

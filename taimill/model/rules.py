@@ -289,3 +289,29 @@ def start_up_note(analysis_start: float, duration: float, ramp_time: float) -> s
     return (f"the analysis window starts at {analysis_start:g} s, inside the {ramp_time:g} s start-up ramp: "
             f"its figures mix start-up and milling; give analysis_start ≥ {ramp_time:g} s (--analysis-start) "
             f"or a shorter ramp_time")
+
+
+# ---------------------------------------------------------------- what a run stores of its events
+EVENT_OUTPUTS = ("rows", "spectra")
+# balls: above this many a run stores the events' energy spectra, not one row per event
+# (outputs.events in a preset chooses either way). A settled bed's ball opens and closes
+# contacts all the time: one row is 136 bytes (17 columns of 8), and a bed of 10⁴ balls
+# closes some 10⁶ contacts per simulated second (scripts/bench.py dense bed): 136 MB/s of
+# rows nobody reads one by one, where the spectra are 36 kB whatever the mill.
+EVENT_ROWS_UP_TO = 10_000
+
+
+def events_output(balls: int) -> str:
+    """The default of outputs.events for a mill of `balls` balls."""
+    return "rows" if balls <= EVENT_ROWS_UP_TO else "spectra"
+
+
+# ---------------------------------------------------------------- softened contacts
+SOFTENING_MAX = 1e4  #: a Hertz contact 40× longer: beyond, overlaps reach a good part of a ball
+
+
+def softening_note(factor: float) -> str:
+    """The line a run with softened contacts prints (docs/softening.md)."""
+    return (f"contacts softened: stiffness ÷ {factor:g}, damping recalibrated to keep each contact's restitution; "
+            f"a Hertz contact lasts {factor ** 0.4:.3g}× longer and the time step grows with it; "
+            "docs/softening.md shows which outputs move with the factor")

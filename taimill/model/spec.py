@@ -43,6 +43,7 @@ class MillSpec:
     stress_min_un: float = STRESS_MIN_UN  #: m/s, impacts start at least this fast
     impact_age: float = IMPACT_AGE  #: s, older contacts are persistent
     wall_friction: Friction | None = None  #: of ball-wall contacts; None: `friction`
+    spectra_from: float = 0.0  #: s, events starting from this time enter the energy spectra
 
     @property
     def frictions(self) -> tuple[Friction, Friction]:
@@ -98,6 +99,7 @@ def from_preset(p: Preset, duration: float | None = None) -> MillSpec:
         steps=frames * every + 1,  # the last step taken is a frame step: frames at both ends
         frame_every=every,
         wall_friction=p.wall_friction,
+        spectra_from=p.analysis_start,
     )
 
 

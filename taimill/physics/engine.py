@@ -337,6 +337,11 @@ class Engine:
             spare = self._spare[b] = [np.empty((nf, *row)) for row in shapes]
         return [a[:nf] for a in spare]
 
+    def spectra(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every mill's spectra so far: events and fixed-point energies [B, kind, class,
+        measure, bin] (taimill.model.spectra)."""
+        return self.F.out.spectrum_count.to_numpy(), self.F.out.spectrum_fixed.to_numpy()
+
     def drain(self, b: int):
         """Frames and events of mill b buffered since the last drain, as NumPy arrays;
         resets the buffers."""

@@ -4,6 +4,7 @@ event record written when it closes, and the dissipation ledger by mechanism
 
 import taichi as ti
 
+from taimill.model import spectra as SP
 from taimill.physics import state as S
 
 
@@ -59,6 +60,37 @@ def emit_event(F: ti.template(), b, i, k, t):
     e = ti.atomic_add(F.out.n_events[b], 1)
     if e < F.event_capacity:
         F.out.events[b, e] = row
+    if q[S.SLOT_T0] >= F.model.spectra_from[b]:
+        add_to_spectra(F, b, ti.cast(kind, ti.i32), q, m_eff)
+
+
+@ti.func
+def add_to_spectra(F: ti.template(), b, kind, q, m_eff):
+    """Add a closing event to its mill's spectra: its class by its onset normal speed,
+    its four energies (taimill.model.spectra.event_energies computes them the same way)."""
+    cls = ti.select(q[S.SLOT_UN] >= F.model.stress_un[b], 0, 1)
+    half_m = 0.5 * m_eff
+    add_energy(F, b, kind, cls, 0, q[S.SLOT_DN])
+    add_energy(F, b, kind, cls, 1, q[S.SLOT_DT])
+    add_energy(F, b, kind, cls, 2, half_m * (q[S.SLOT_UN] * q[S.SLOT_UN]))
+    add_energy(F, b, kind, cls, 3, half_m * (q[S.SLOT_UT] * q[S.SLOT_UT]))
+
+
+@ti.func
+def add_energy(F: ti.template(), b, kind, cls, measure, e):
+    """One event of energy e (J) into its bin: the number of edges at or below e (a
+    binary search, as numpy.searchsorted side="right"), its energy in the bin's fixed
+    point. Integers: the sums do not depend on the order the events arrive in."""
+    lo, hi = 0, ti.static(len(SP.EDGES))
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if F.model.spectrum_edges[mid] <= e:
+            lo = mid + 1
+        else:
+            hi = mid
+    ti.atomic_add(F.out.spectrum_count[b, kind, cls, measure, lo], 1)
+    ti.atomic_add(F.out.spectrum_fixed[b, kind, cls, measure, lo],
+                  ti.cast(ti.floor(e * F.model.spectrum_scale[lo] + 0.5), ti.i64))
 
 
 @ti.func

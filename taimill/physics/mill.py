@@ -8,6 +8,7 @@ import taichi as ti
 
 from taimill.model.frame import Ramp
 from taimill.model.geometry import PIECE_COLUMNS, piece_bounds
+from taimill.model import spectra as SP
 from taimill.model.materials import Friction
 from taimill.model.spec import MillSpec, grid_for, skin_for
 from taimill.physics import state as S
@@ -37,6 +38,7 @@ def write_mill(F, b: int, spec: MillSpec):
     F.model.target[b] = spec.steps
     F.model.stress_un[b] = spec.stress_min_un
     F.model.impact_age[b] = spec.impact_age
+    F.model.spectra_from[b] = spec.spectra_from
     for ct, (law, model) in enumerate(zip((spec.ball_ball, spec.ball_wall), spec.contact_models)):
         F.model.variant[b, ct] = F.models[ct].index(model)
         F.model.law_k[b, ct] = law.k
@@ -61,7 +63,8 @@ def write_mill(F, b: int, spec: MillSpec):
     _load_mill(F, b, n, len(pieces), np.ascontiguousarray(pieces, dtype=np.float64),
                np.ascontiguousarray(piece_bounds(pieces), dtype=np.float64),
                *(np.ascontiguousarray(a, dtype=np.float64) for a in
-                 (spec.position, spec.velocity, spec.spin, spec.radius, spec.mass, 1.0 / spec.inertia)))
+                 (spec.position, spec.velocity, spec.spin, spec.radius, spec.mass, 1.0 / spec.inertia,
+                  SP.EDGES, SP.SCALE)))
     F.state.step[b] = 0
     F.state.status[b] = S.OK
     F.state.bad_ball[b] = -1
@@ -96,10 +99,17 @@ def set_clock(F, b: int, dt: float, step: int, frame_every: int):
 def _load_mill(F: ti.template(), b: ti.i32, n: ti.i32, n_pieces: ti.i32, pieces: ti.types.ndarray(ndim=2),
                bounds: ti.types.ndarray(ndim=2), x: ti.types.ndarray(ndim=2), v: ti.types.ndarray(ndim=2),
                s: ti.types.ndarray(ndim=2), r: ti.types.ndarray(ndim=1), m: ti.types.ndarray(ndim=1),
-               inv_i: ti.types.ndarray(ndim=1)):
+               inv_i: ti.types.ndarray(ndim=1), edges: ti.types.ndarray(ndim=1), scale: ti.types.ndarray(ndim=1)):
     """Rows of mill b: its profile pieces, its n balls (rows ≥ n: zero state, unit
     radius, mass and inverse inertia), cleared forces, energies, wall bounds and open
-    contacts."""
+    contacts; empty spectra, and the spectra's bins (the same for every mill)."""
+    for k in range(edges.shape[0]):
+        F.model.spectrum_edges[k] = edges[k]
+    for k in range(scale.shape[0]):
+        F.model.spectrum_scale[k] = scale[k]
+    for I in ti.grouped(ti.ndrange(*SP.SHAPE)):
+        F.out.spectrum_count[b, I[0], I[1], I[2], I[3]] = 0
+        F.out.spectrum_fixed[b, I[0], I[1], I[2], I[3]] = 0
     for p in range(n_pieces):
         for c in ti.static(range(PIECE_COLUMNS)):
             F.model.piece[b, p][c] = pieces[p, c]

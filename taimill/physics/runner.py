@@ -5,7 +5,8 @@ sink, faults.
     compile_plan(specs) — whether a Runner of these mills compiles kernels, and for how long.
 
 A sink here is any object with the `events`, `frames` and `energy` calls of
-`taimill.store.sinks.Sink`; the runner never imports a sink.
+`taimill.store.sinks.Sink` (and, if it has one, `spectra`: the mill's energy spectra
+so far after each drain); the runner never imports a sink.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from taimill.physics import state as S
 from taimill.physics.engine import Engine, advance_fused, begin_step, export_events, export_frames
 from taimill.physics.mill import write_mill
 from taimill.model.spec import MillSpec, grid_cells_for
+from taimill.model.spectra import Spectra
 from taimill.schema import DERIVED_EVENT_COLUMNS, EVENT_COLUMNS
 
 _initialised = False
@@ -411,10 +413,13 @@ class Runner:
         """Stream what the launches since the last drain buffered; per mill None or the
         fault message. (The live mill drains every few launches: a drain costs ≈ 1 ms.)"""
         faults = []
+        spectra = self.spectra() if any(hasattr(sink, "spectra") for sink in sinks) else None
         for b, sink in enumerate(sinks):
             frames, raw, ledger = self.engine.drain(b)
             if len(raw):
                 sink.events(events_table(raw))
+            if spectra is not None and hasattr(sink, "spectra"):
+                sink.spectra(spectra[b])
             if len(frames["time"]):
                 sink.frames(frames)
                 sink.energy({"time": frames["time"], **{k: ledger[:, c] for c, k in enumerate(S.LEDGER_FIELDS)}})
@@ -422,6 +427,13 @@ class Runner:
             faults.append(None if code == S.OK else status_message(code, int(self.engine.F.state.bad_ball[b]), self.time(b), self.specs[b].dt,
                                                                      self.engine.F.pool_capacity))
         return faults
+
+    def spectra(self) -> list[Spectra]:
+        """Each mill's energy spectra of the events closed so far, over its window
+        (spectra_from … now)."""
+        count, fixed = self.engine.spectra()
+        return [Spectra(s.spectra_from, max(s.spectra_from, self.time(b)), s.stress_min_un, count[b], fixed[b])
+                for b, s in enumerate(self.specs)]
 
     def run(self, sinks, progress=None):
         """Run every mill to its target; raises SimulationUnstable for the first fault

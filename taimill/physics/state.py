@@ -10,6 +10,7 @@ import taichi as ti
 
 from taimill.model.contact.registry import contact_model, law_by_name
 from taimill.model.geometry import MAX_PIECES, PIECE_COLUMNS
+from taimill.model import spectra as SP
 from taimill.schema import DERIVED_EVENT_COLUMNS, DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS, MECHANISM_COLUMNS
 
 # Contact slots per ball: 3 wall slots (side, floor, lid), then partner slots for the
@@ -161,6 +162,9 @@ class Fields:
         # class of a contact for the mechanism ledger (taimill.model.mechanisms) [B]
         model.stress_un = ti.field(f64, B)  #: m/s, least onset normal speed of an impact
         model.impact_age = ti.field(f64, B)  #: s, an impact older than this is persistent
+        model.spectra_from = ti.field(f64, B)  #: s, events starting from this time enter the spectra
+        model.spectrum_edges = ti.field(f64, len(SP.EDGES))  #: J, bin edges (taimill.model.spectra)
+        model.spectrum_scale = ti.field(f64, SP.NBIN)  #: 1/J, fixed-point scale per bin
         # contact model per contact type [B, 2] (0 ball-ball, 1 ball-wall): one of the
         # engine's compiled models (self.models[ct], variant only if it has several)
         # and the normal law's coefficients
@@ -249,6 +253,10 @@ class Fields:
         out.frame_ledger = ti.Vector.field(len(LEDGER_FIELDS), f64, (B, frame_capacity))
         out.frame_drive = ti.Vector.field(len(DRIVE_FIELDS), f64, (B, frame_capacity))  #: φ_p, Ω, φ_j, w
         out.n_frames = ti.field(i32, B)
+        # energy spectra of the events closed so far [B, kind, class, measure, bin]
+        # (taimill.model.spectra): events, and their energy in fixed point
+        out.spectrum_count = ti.field(i64, (B, *SP.SHAPE))
+        out.spectrum_fixed = ti.field(i64, (B, *SP.SHAPE))
 
 
     def field(self, name: str):

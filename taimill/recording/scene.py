@@ -1,7 +1,8 @@
 """What a taimill recording looks like: entity paths, static scenery, colour scales and
 the default blueprint (rerun-sdk 0.41).
 
-Entity tree (SI units: m, s, J, W):
+Entity tree (SI units: m, s, J, W, except stress energies in mJ, as in the reports, with
+the unit in their names: /stats/mean_se_mJ/…, "up to … mJ"):
 
     /jar                     the jar frame (docs/model.md); in the lab view its pose on the plate
     /jar/wall                the jar's real profile at floor and lid, with vertical edges
@@ -47,15 +48,16 @@ SE_DECADES = 4.0  # colour range of stress energies below ½ m V²
 UN_DECADES = 2.0  # colour range of contact-map onset speeds below V (wall impacts: ≈ V/50 … V)
 OUTLINE_POINTS = 720  # profile vertices drawn (of the fine outline's thousands)
 EDGES = 24  # vertical wall edges drawn
+TOTAL_COLOUR = [235, 195, 60, 255]  # the mean-SE total, apart from its normal (plasma) and tangential (cool) parts
 COLORMAPS = {"speed": "viridis", "normal": "plasma", "tangential": "cool", "contact": "turbo"}
 
 # series path -> (plot, legend name, unit)
 SERIES = {
     "impact_power/normal": ("impact power", "normal", "W"),
     "impact_power/tangential": ("impact power", "tangential", "W"),
-    "mean_se/total": ("mean stress energy", "total", "J"),
-    "mean_se/normal": ("mean stress energy", "normal", "J"),
-    "mean_se/tangential": ("mean stress energy", "tangential", "J"),
+    "mean_se_mJ/total": ("mean stress energy", "total (mJ)", "mJ"),
+    "mean_se_mJ/normal": ("mean stress energy", "normal (mJ)", "mJ"),
+    "mean_se_mJ/tangential": ("mean stress energy", "tangential (mJ)", "mJ"),
     "collision_rate": ("stress-event rate", "events/s", "1/s"),
     "dissipated_power": ("dissipated power", "dissipated", "W"),
     "dissipated_power_persistent": ("dissipated power", "in persistent contacts", "W"),
@@ -147,13 +149,14 @@ def log_scenery(rec: rr.RecordingStream, config: dict, fine: np.ndarray, radii: 
                                        colors=[120, 120, 120, 255]), static=True)
     for path, (_, name, _) in SERIES.items():
         kind = path.rpartition("/")[2]
-        color = shade(lut(COLORMAPS[kind]), np.array(0.6)) if kind in IMPACTS else None
+        color = shade(lut(COLORMAPS[kind]), np.array(0.6)) if kind in IMPACTS else TOTAL_COLOUR if kind == "total" else None
         rec.log(f"/stats/{path}", rr.SeriesLines(names=name, colors=color), static=True)
 
 
 def info_text(config: dict, speed_ref: float, se_ref: float, summary: dict | None = None,
               status: str | None = None) -> str:
-    """Markdown: the run's setting and colour scales (m/s, J), and its summary once finished."""
+    """Markdown: the run's setting and colour scales (m/s, mJ), and its summary once finished
+    (its JSON keys and SI units, as `taimill run --json`)."""
     jar, balls = config["jar"], config["balls"]
     drive = Drive.from_config(config)
     lines = [
@@ -163,15 +166,21 @@ def info_text(config: dict, speed_ref: float, se_ref: float, summary: dict | Non
         f"- Ω = {drive.plate_rpm:g} rpm, K = {drive.ratio:.3g}, dt = {config['dt'] * 1e6:.4g} µs, duration {config.get('duration', '?')} s",
         f"- balls coloured by speed in the jar frame ({COLORMAPS['speed']}, 0 … {speed_ref:.2f} m/s)",
         f"- impacts by stress energy (normal {COLORMAPS['normal']}, tangential {COLORMAPS['tangential']}; "
-        f"{SE_DECADES:g} decades up to {se_ref:.3g} J), shown for {IMPACT_LIFE * 1e3:g} ms",
+        f"{SE_DECADES:g} decades up to {se_ref * 1e3:.3g} mJ), shown for {IMPACT_LIFE * 1e3:g} ms",
         f"- contact map by onset u̇_n ({COLORMAPS['contact']}, {UN_DECADES:g} decades up to {speed_ref:.2f} m/s)",
     ]
     if summary:
         units = summary.get("units", {})
         lines += ["", f"## Summary ({status})", "", "| key | value | unit |", "|---|---|---|"]
-        lines += [f"| {k} | {v:.6g} | {units.get(k, '')} |" if isinstance(v, float) else f"| {k} | {v} | {units.get(k, '')} |"
-                  for k, v in summary.items() if k != "units"]
+        lines += [_summary_row(k, v, units.get(k, "")) for k, v in summary.items() if k != "units"]
     return "\n".join(lines)
+
+
+def _summary_row(key: str, value, unit: str) -> str:
+    """A row of the summary table; stress energies (`…se…` keys in J) in mJ."""
+    if isinstance(value, float) and unit == "J" and "se" in key.split("_"):
+        value, unit = value * 1e3, "mJ"
+    return f"| {key} | {value:.6g} | {unit} |" if isinstance(value, float) else f"| {key} | {value} | {unit} |"
 
 
 HIST_ABSCISSA_SHIFT = 3.0  # log10(m/s) + 3 = log10(mm/s)

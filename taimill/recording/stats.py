@@ -4,7 +4,7 @@ The summary (taimill/analysis/summary.py) gives one number per run; a recording 
 same quantities evolve. At a time T each rate is taken over the window (T - W, T]:
 
     impact power  P_n = Σ SE_n / W, P_t = Σ SE_t / W          (thesis eq 3.8)
-    mean SE       Σ (SE_n + SE_t) / n,  and its normal / tangential parts
+    mean SE       Σ (SE_n + SE_t) / n,  and its normal / tangential parts (in mJ)
     collision rate n / W                                       (events per second)
     dissipated    (D(T) - D(T - W)) / W                        (ledger, W)
 
@@ -26,6 +26,7 @@ import numpy as np
 from taimill.model.mechanisms import STRESS_MIN_UN
 from taimill.schema import MECHANISM_COLUMNS
 
+MJ = 1e3  # mJ per J: stress energies are shown in mJ, as in the reports, the summary and the TUI
 HIST_LOG10_RANGE = (-4.0, 1.0)  # log10(m/s): 0.1 mm/s to 10 m/s
 HIST_BINS = 25  # 0.2 decade per bin
 
@@ -49,7 +50,8 @@ def window_rates(events: dict[str, np.ndarray], ledger: dict[str, np.ndarray], t
                  window: float, t_origin: float) -> dict[str, np.ndarray]:
     """Series name -> values at `times` (s) over windows of `window` s cut at `t_origin`.
 
-    events: t_start (s), un (m/s), se_n, se_t (J); the stress-energy series count
+    events: t_start (s), un (m/s), se_n, se_t (J); the mean stress energies are in mJ (the
+    unit in their names, as in the reports), the rest SI; the stress-energy series count
     stress events (onset u̇n ≥ STRESS_MIN_UN). ledger: time (s), kinetic, dissipated and
     its mechanism columns (J), covering every T - W and T (linear interpolation)."""
     length = np.minimum(window, times - t_origin)
@@ -66,9 +68,9 @@ def window_rates(events: dict[str, np.ndarray], ledger: dict[str, np.ndarray], t
         return {
             "impact_power/normal": s["se_n"] / length,
             "impact_power/tangential": s["se_t"] / length,
-            "mean_se/total": (s["se_n"] + s["se_t"]) / s["count"],
-            "mean_se/normal": s["se_n"] / s["count"],
-            "mean_se/tangential": s["se_t"] / s["count"],
+            "mean_se_mJ/total": MJ * (s["se_n"] + s["se_t"]) / s["count"],
+            "mean_se_mJ/normal": MJ * s["se_n"] / s["count"],
+            "mean_se_mJ/tangential": MJ * s["se_t"] / s["count"],
             "collision_rate": s["count"] / length,
             "dissipated_power": dissipated / length,
             "dissipated_power_persistent": gain(persistent) / length,

@@ -55,6 +55,7 @@ class PointResult:
     n_balls: int
     radii: np.ndarray
     tables: dict | None  #: {"frames": …, "events": …, "energy": …} (MemorySink tables)
+    spectra: object = None  #: the point's energy spectra (taimill.model.spectra.Spectra)
 
 
 @dataclass
@@ -134,6 +135,7 @@ def run_chunk(chunk_id: int, jobs: list[Job], keep_streams: bool) -> list[PointR
     work = np.array([int(runner.engine.F.state.step[b]) * s.n for b, s in enumerate(specs)], dtype=float)
     share = work / work.sum() if work.sum() > 0 else np.full(len(jobs), 1.0 / len(jobs))
     results = []
+    spectra = runner.spectra()
     for b, (job, spec, mem, (summary, out)) in enumerate(zip(jobs, specs, mems, started)):
         result = point_result(job.preset, spec, summary, runner, b, wall * share[b], status[b])
         result["batch"] = len(jobs)
@@ -142,7 +144,7 @@ def run_chunk(chunk_id: int, jobs: list[Job], keep_streams: bool) -> list[PointR
         if keep_streams:
             tables = {"frames": mem.frame_table, "events": mem.event_table, "energy": mem.energy_table}
         results.append(PointResult(job.index, result, status[b], mem.config if keep_streams else {}, spec.n,
-                                   np.asarray(spec.radius), tables))
+                                   np.asarray(spec.radius), tables, spectra[b]))
     return results
 
 

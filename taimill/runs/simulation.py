@@ -10,6 +10,7 @@ import time
 from taimill.analysis.summary import SummarySink
 from taimill.errors import SimulationUnstable
 from taimill.model.spec import from_preset
+from taimill.outcome.dose import dose_keys, shear_keys
 from taimill.physics.runner import Runner
 from taimill.runs import signals
 from taimill.runs.signals import sigterm_interrupts
@@ -21,6 +22,8 @@ def start_point(preset, spec, sink) -> tuple[SummarySink, FanOut]:
     """The summary sink of one mill and the stream feeding it and `sink`, started
     (shared by run() and sweeps so that a sweep point is the same run)."""
     sim_seconds = spec.steps * spec.dt
+    if preset.events_output == "spectra":
+        sink = SpectraOnly(sink)
     summary = SummarySink(min(preset.analysis_start, sim_seconds), sim_seconds, preset.jar.radius, preset.balls.radius)
     out = FanOut(summary, sink)
     out.start(preset.as_dict() | {"duration": sim_seconds}, spec.n, spec.radius)
@@ -32,7 +35,20 @@ def point_result(preset, spec, summary, runner, b, wall, status) -> dict:
     result = summary.result(runner.time(b), wall)
     result.update(dt=spec.dt, steps=int(runner.engine.F.state.step[b]), status=status,
                   ratio=preset.drive.ratio, plate_rpm=preset.drive.plate_rpm)
+    if preset.softening != 1.0:  # the run's contacts are not the measured ones: said with every result
+        result["softening"] = preset.softening
+    # the dose per gram of powder (with a [powder] table) and the gentle / shear view
+    result.update(dose_keys(result, preset.as_dict()))
+    result.update(shear_keys(result, summary.summary.geom.wall_area))
     return with_units(result)
+
+
+class SpectraOnly(Relay):
+    """The caller's sink of a run that keeps the events' spectra, not their rows
+    (outputs.events = "spectra"): the summary still sees every event."""
+
+    def events(self, block):
+        pass
 
 
 class WholeLaunches(Relay):

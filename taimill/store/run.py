@@ -7,6 +7,9 @@ Layout of one run group (docs/outputs.md):
     trajectory/  time (F,) s; position, velocity, spin (F, N, 3) m, m/s, rad/s
     events/      one 1-D array per `EVENT_COLUMNS` entry
     energy/      one 1-D array per `ENERGY_COLUMNS` entry
+    spectra/     the events' energy spectra over the analysis window (store/spectra.py),
+                 written when the run ends, and at every commit by a run that stores
+                 no event rows (config events_output = "spectra")
     journal/     while the writer runs: NNNNNNNN.npz, the rows committed since the last
                  whole chunk of each table
 
@@ -68,6 +71,9 @@ from zarr.core.sync import sync
 from zarr.storage import LocalStore
 
 from taimill.errors import StoreError, StoreWriteError
+from taimill.model.mechanisms import STRESS_MIN_UN
+from taimill.model.spectra import from_rows
+from taimill.store.spectra import GROUP as SPECTRA, read_spectra, write_spectra
 from taimill.schema import (DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_COLUMNS, MECHANISM_COLUMNS, PER_BALL,
                             VELOCITY_CONVENTION)
 
@@ -453,6 +459,8 @@ class ZarrSink:
         self.journaled: dict[str, int] = {}  #: rows of each table that are in the arrays or the journal
         self.segments: list[tuple[str, dict[str, int]]] = []  #: journal keys and their end row per table
         self.seq = 0
+        self.last_spectra = None
+        self.event_rows = 0  #: event rows received: none, and the spectra are committed with the tables
 
     @contextmanager
     def _writing(self, part: str):
@@ -507,6 +515,7 @@ class ZarrSink:
 
     def events(self, block: dict[str, np.ndarray]) -> None:
         """Append collision events, one array per `EVENT_COLUMNS` entry."""
+        self.event_rows += len(block["t_start"])
         self._add("events", block)
 
     def energy(self, block: dict[str, np.ndarray]) -> None:
@@ -522,6 +531,9 @@ class ZarrSink:
     def commit(self) -> None:
         """Make every row received so far durable at the cost of one file: the rows not
         yet in whole chunks of the arrays go to one journal segment (module doc)."""
+        if self.last_spectra is not None and self.event_rows == 0:  # a run storing spectra only
+            with self._writing(SPECTRA):
+                write_spectra(self.group, self.last_spectra, CODECS)
         starts = {name: max(self.journaled[name], t.committed) for name, t in self.tables.items()}
         tails = {name: t.tail(starts[name]) for name, t in self.tables.items()}
         ends = {name: starts[name] + len(next(iter(rows.values()))) for name, rows in tails.items()}
@@ -566,6 +578,10 @@ class ZarrSink:
             self.seq, self.segments = 0, []
         self.journaled = {name: t.committed for name, t in self.tables.items()}
 
+    def spectra(self, spectra) -> None:
+        """The run's energy spectra so far (taimill.model.spectra), written at finish."""
+        self.last_spectra = spectra
+
     def finish(self, summary: dict, status: str) -> None:
         """Flush, then record `summary`, `status` ("complete", "unstable: …", …) and
         the summary's `analysis_window` ([start, end], s) as the store's own. After a
@@ -573,6 +589,9 @@ class ZarrSink:
         if self.failed is None:
             try:
                 self.flush()
+                if self.last_spectra is not None:
+                    with self._writing(SPECTRA):
+                        write_spectra(self.group, self.last_spectra, CODECS)
                 attrs = {"summary": plain(summary, "summary"), "status": status}
                 if "analysis_window" in summary:
                     attrs["analysis_window"] = plain(summary["analysis_window"], "analysis_window")
@@ -929,7 +948,8 @@ class RunStore:
         if s is None or not status.startswith(FLUSHED):
             return
         total = s.get("events_total")
-        if isinstance(total, int) and total != self.rows["events"]:
+        rows_kept = (self.config or {}).get("events_output", "rows") == "rows"  # else the spectra only
+        if rows_kept and isinstance(total, int) and total != self.rows["events"]:
             self._bad("events", f"{self.rows['events']} committed rows, but the summary counts {total} events")
         # a store whose writer had no ledger to write says why in `energy_source` (an
         # import from another DEM code): its empty energy table is not damage
@@ -985,6 +1005,22 @@ class RunStore:
         relative to the jar frame, see `conventions`); the jar frame's drive per frame:
         plate_angle, jar_angle (rad), plate_speed, jar_spin (rad/s)."""
         return self._table("trajectory")
+
+    @cached_property
+    def spectra(self):
+        """The run's energy spectra (taimill.model.spectra.Spectra): the stored group
+        (written when the run ends), else binned from the event rows over the analysis
+        window (a run killed before its end), else None."""
+        try:
+            stored = read_spectra(self.group)
+        except (KeyError, ValueError, TypeError) as err:
+            self._bad(SPECTRA, f"unreadable ({err})")
+        if stored is not None:
+            return stored
+        if "events" not in self.group:
+            return None
+        start = float((self.analysis_window or [(self.config or {}).get("analysis_start", 0.0)])[0])
+        return from_rows(self.events, start, math.inf, STRESS_MIN_UN)
 
     @cached_property
     def events(self) -> dict[str, np.ndarray]:

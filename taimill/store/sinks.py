@@ -71,6 +71,7 @@ class MemorySink:
         self._frames: list[dict] = []
         self._events: list[dict] = []
         self._energy: list[dict] = []
+        self.last_spectra = None  #: the runner's spectra at its last drain
 
     def start(self, config, n_balls, radii):
         self.config = config
@@ -84,6 +85,9 @@ class MemorySink:
 
     def energy(self, block):
         self._energy.append(block)
+
+    def spectra(self, spectra):
+        self.last_spectra = spectra
 
     def finish(self, summary, status):
         self.summary, self.status = summary, status
@@ -126,6 +130,10 @@ class Relay:
     def energy(self, block):
         self.sink.energy(block)
 
+    def spectra(self, spectra):
+        if hasattr(self.sink, "spectra"):
+            self.sink.spectra(spectra)
+
     def finish(self, summary, status):
         self.sink.finish(summary, status)
 
@@ -151,6 +159,11 @@ class FanOut:
     def energy(self, block):
         for s in self.sinks:
             s.energy(block)
+
+    def spectra(self, spectra):
+        for s in self.sinks:
+            if hasattr(s, "spectra"):
+                s.spectra(spectra)
 
     def finish(self, summary, status):
         for s in self.sinks:

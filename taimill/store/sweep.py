@@ -187,6 +187,8 @@ class SweepStore:
             for table, write in (("frames", sink.frames), ("events", sink.events), ("energy", sink.energy)):
                 if result.tables[table] is not None:
                     write(result.tables[table])
+        if getattr(result, "spectra", None) is not None:
+            sink.spectra(result.spectra)
         sink.finish(result.summary, result.status)
         self._write_row(result.index, result.summary)
 
@@ -242,6 +244,10 @@ class SweepStore:
         """The run store (store.RunStore) of point i, checked (StoreError names damage)."""
         return open_run(self._member(f"points/{_name(i)}"))
 
+    def spectra(self, i: int):
+        """The energy spectra (taimill.model.spectra.Spectra) of point i, or None."""
+        return self.point(i).spectra
+
     @property
     def refine(self) -> dict | None:
         return self.root.attrs.get("refine")
@@ -279,11 +285,14 @@ def _short(v) -> str:
 
 def scalars(summary: dict) -> dict:
     """The summary's scalar entries (int, float, str), for the table, plus the
-    dissipation by mechanism as dissipated_power_KIND_CLASS_PART (W) and the regime
-    criteria (regime maps read them)."""
+    dissipation by mechanism as dissipated_power_KIND_CLASS_PART (W), the regime
+    criteria (regime maps read them) and the stress events' energy spectra as
+    spectrum_MEASURE_STAT (J; STAT mean, median, p90)."""
     out = {}
     flat = {f"dissipated_power_{k}_{c}_{p}": w for k, cls in summary.get("dissipation_by_mechanism", {}).items()
             for c, parts in cls.items() for p, w in parts.items()}
+    flat |= {f"spectrum_{m}_{stat}": d[stat] for m, d in (summary.get("spectra") or {}).items()
+             if isinstance(d, dict) for stat in ("mean", "median", "p90") if stat in d}
     for k, v in (summary | flat | summary.get("regime_criteria", {})).items():
         if isinstance(v, bool) or v is None:
             continue

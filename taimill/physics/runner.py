@@ -396,6 +396,7 @@ class Runner:
         export_events(F, 0, 0, np.zeros((1, S.NCOL)))
         export_frames(F, 0, 0, nb, *e._frame_arrays(0, 1, nb))
         e._spare.clear()  # the drain's own arrays, sized for its frames
+        e.spectra()  # the copies a drain to a sink with spectra makes (reads only)
 
     def done(self) -> bool:
         F = self.engine.F

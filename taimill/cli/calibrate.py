@@ -44,7 +44,7 @@ def announced(command):
     drop test takes 20 s, a later one 1.3 s: physics.runner.CompilePlan)."""
     def run(a) -> int:
         from taimill.cli.run import say
-        from taimill.physics.runner import announcing
+        from taimill.runs.simulation import announcing
 
         with announcing(lambda plan: say(plan.text())):
             return command(a)

@@ -36,7 +36,7 @@ def cmd_tui(a) -> int:
 
     print_warnings(preset)
     from taimill.cli.run import say
-    from taimill.physics.runner import announcing
+    from taimill.runs.simulation import announcing
     from taimill.runs.live import LiveMill
     from taimill.runs.signals import sigterm_interrupts
     from taimill.tui.app import MillApp

@@ -11,7 +11,7 @@ from taimill.analysis.summary import SummarySink
 from taimill.errors import SimulationUnstable
 from taimill.model.spec import from_preset
 from taimill.outcome.dose import dose_keys, shear_keys
-from taimill.physics.runner import Runner
+from taimill.physics.runner import Runner, announcing  # announcing: the CLI says when kernels compile
 from taimill.runs import signals
 from taimill.runs.signals import sigterm_interrupts
 from taimill.schema import with_units

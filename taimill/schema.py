@@ -89,8 +89,8 @@ REGIME_CLASSES = ("cascading", "cataracting", "pinned ring", "sliding bed", "rol
 # (key in the summary, label, unit, scale)
 SUMMARY_ROWS = (
     ("sim_seconds", "simulated time", "s", 1),
-    ("wall_seconds", "wall time", "s", 1),
-    ("realtime_factor", "simulated s per wall s", "", 1),
+    ("wall_seconds", "wall time, set-up and compiling left out", "s", 1),
+    ("realtime_factor", "simulated s per wall s, compiling left out", "", 1),
     ("dt", "time step", "µs", 1e6),
     ("events", "stress events in window", "", 1),
     ("events_ball_ball", "  ball-ball", "", 1),

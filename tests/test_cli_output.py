@@ -57,9 +57,10 @@ def test_progress_bar_names_the_set_up_phases_and_says_it_compiles_before_it_cou
     text = io.StringIO()
     console = Console(file=text, force_terminal=True, width=100)
 
-    def run(preset, sink, progress, stage):  # as runs.simulation.run: the first report comes after compilation
+    def run(preset, sink, progress, stage, notice):  # as runs.simulation.run: the first report comes after compilation
         seen.append(text.getvalue())
-        stage("compiling kernels, first neighbour lists…")
+        stage("compiling kernels for 12 balls (first run of this size, ≈ 20 s)…")
+        notice("compiling kernels for 12 balls (first run of this size, ≈ 20 s)")
         seen.append(text.getvalue())
         progress(0.25)
         progress(0.5)
@@ -69,17 +70,26 @@ def test_progress_bar_names_the_set_up_phases_and_says_it_compiles_before_it_cou
     assert "setting up 12 balls" in seen[0] and "0.00/" not in seen[0]
     assert "compiling kernels" in seen[1][len(seen[0]):] and "0.00/" not in seen[1]
     assert "simulating" in text.getvalue() and "0.50/0.5 s" in text.getvalue()
+    # the notice is a line of its own that stays when the (transient) bar is gone
+    assert "taimill: compiling kernels for 12 balls (first run of this size, ≈ 20 s)\n" in text.getvalue()
 
 
 def test_run_reports_its_set_up_phases_before_the_first_launch(monkeypatch):
+    from taimill.physics import runner
     from taimill.runs import simulation
 
-    events = []
+    events, notices = [], []
     monkeypatch.setattr(simulation.Runner, "run", lambda self, sinks, progress=None: events.append("first launch"))
+    monkeypatch.setattr(runner, "_engines", {})  # a process without kernels: they are compiled
     preset = load_preset(PRESET, {"duration": 0.01})
-    simulation.run(preset, stage=events.append)
+    simulation.run(preset, stage=events.append, notice=notices.append)
     assert events[0].startswith("placing 12 balls") and events[1].startswith("setting up 12 balls")
-    assert events[2].startswith("compiling kernels") and events[3] == "first launch"
+    assert events[2].startswith("compiling kernels for 12 balls (") and events[2].endswith(" s)…")
+    assert events[3].startswith("first neighbour lists") and events[4] == "first launch"
+    assert notices == [events[2][:-1]]
+    events.clear(), notices.clear()
+    simulation.run(preset, stage=events.append, notice=notices.append)  # the kernels are there now
+    assert not any("compiling" in e for e in events) and notices == []
 
 
 def presets_listing(capsys) -> dict[str, str]:

@@ -60,8 +60,10 @@ def wait_for(condition, timeout=120.0, what="condition"):
 
 
 def one_line(stderr: str) -> str:
-    """The fault's one line; the preset's warnings said before the run started aside."""
-    lines = [ln for ln in stderr.splitlines() if ln.strip() and not ln.startswith(("[Taichi]", "taimill: warning: "))]
+    """The fault's one line; the preset's warnings and the compile notice said before
+    the run started aside."""
+    lines = [ln for ln in stderr.splitlines()
+             if ln.strip() and not ln.startswith(("[Taichi]", "taimill: warning: ", "taimill: compiling"))]
     assert len(lines) == 1 and "Traceback" not in stderr, stderr
     return lines[0]
 

@@ -75,9 +75,9 @@ def test_presets_and_jars_list_from_another_folder(tmp_path):
     res = taimill("presets", cwd=tmp_path)
     assert res.returncode == 0, res.stderr
     header, *rows = res.stdout.splitlines()
-    assert header.split()[:3] == ["preset", "jar", "balls"] and "Ω rpm" in header and "duration" in header
+    assert header.split()[:4] == ["preset", "mill", "jar", "balls"] and "Ω rpm" in header and "duration" in header
     cy = next(r.split() for r in rows if r.startswith("p4-cy-steel "))
-    assert cy[:6] == ["p4-cy-steel", "CY", "12", "6", "steel-steel", "-2.6"] and cy[6:8] == ["200", "24"]
+    assert cy[:7] == ["p4-cy-steel", "fritsch-p4", "CY", "12", "6", "steel-steel", "-2.6"] and cy[7:9] == ["200", "24"]
     assert {r.split()[0] for r in rows if r.startswith(("p4-", "efv-"))} == set(files.bundled_names("preset"))
     res = taimill("jars", cwd=tmp_path)
     assert res.returncode == 0, res.stderr

@@ -449,3 +449,55 @@ def test_acceptance_comparison_with_liggghts(tmp_path):
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)
     assert script.main(["--out", str(tmp_path / "cmp"), "--results", str(tmp_path / "cmp.md")]) == 0
+
+
+# a LIGGGHTS log as LIGGGHTS-PUBLIC 3.8 writes it: one "Loop time" line per `run` of the deck
+FAKE_LOG = """\
+LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, compiled 2019-01-09)
+run 1500
+Loop time of 12.25 on 4 procs for 1500 steps with 1 atoms, 99.8% CPU use with 4 MPI tasks x no OpenMP threads
+run 28500
+Loop time of 27.75 on 4 procs for 28500 steps with 1 atoms, 99.9% CPU use with 4 MPI tasks x no OpenMP threads
+Total wall time: 0:00:41
+"""
+
+
+def _free_flight_case(tmp_path):
+    p = free_flight_preset(tmp_path)
+    case = tmp_path / "case"
+    export_case(p, case)
+    man = dumps.read_manifest(case)
+    steps = np.arange(0, man["steps"] + 1, man["frame_every"])
+    t = steps * man["dt"]
+    x = (np.array([p.plate_radius - 0.005, 0.003, 0.017]) + np.outer(t * t, [0, 0, -0.5 * G]))[:, None]
+    v = np.outer(t, [0, 0, -G])[:, None]
+    _synthetic_dump(case / "dumps" / "balls.dump", steps, x, v, np.zeros_like(v), p.balls.radius, p.balls.mass)
+    return case
+
+
+def test_import_reports_liggghts_own_run_time_from_its_log(tmp_path):
+    import json
+
+    from tests.inprocess import main
+
+    case = _free_flight_case(tmp_path)
+    (case / "log.liggghts").write_text(FAKE_LOG)
+    code, out, err = main("import", "liggghts", case, "--out", tmp_path / "a.zarr", "--json")
+    assert code == 0, err
+    s = json.loads(out)
+    assert s["wall_seconds"] == 40.0 and s["realtime_factor"] == pytest.approx(s["sim_seconds"] / 40.0)
+    assert open_run(tmp_path / "a.zarr").attrs["source"]["loop_seconds"] == 40.0
+    code, out, err = main("import", "liggghts", case, "--out", tmp_path / "b.zarr")
+    assert code == 0 and "LIGGGHTS ran them in 40 s on 4 processes (log.liggghts)" in out, out + err
+    assert err == ""
+
+
+def test_import_without_a_log_says_the_run_time_is_unknown(tmp_path):
+    import json
+
+    from tests.inprocess import main
+
+    case = _free_flight_case(tmp_path)
+    code, out, err = main("import", "liggghts", case, "--out", tmp_path / "a.zarr", "--json")
+    assert code == 0 and json.loads(out)["wall_seconds"] is None  # not the import's own time
+    assert err.startswith("taimill: warning: ") and "LIGGGHTS' run time is unknown" in err and err.count("\n") == 1

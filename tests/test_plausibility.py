@@ -5,6 +5,7 @@ every shipped preset passes them without a word."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -48,7 +49,7 @@ def test_a_plate_radius_below_the_jars_is_refused(tmp_path):
 def test_a_ball_far_from_its_contact_sets_size_warns(tmp_path):
     # the steel set was measured with 6 mm balls: 0.006 (µm where mm were meant) warns,
     # 60 mm (10×) is the last size that does not; both still run
-    slip = load_preset(_preset(tmp_path, radius_mm=0.006), {"duration": 1.5})
+    slip = load_preset(_preset(tmp_path, radius_mm=0.006))
     assert len(slip.warnings) == 1 and "1e+03 times smaller" in slip.warnings[0] and "'steel'" in slip.warnings[0]
     assert rules.ball_size_note(0.06, 0.006, "steel") is None
     assert "larger" in rules.ball_size_note(0.0601, 0.006, "steel")
@@ -69,8 +70,47 @@ def test_warnings_are_printed_one_line_each_before_anything_runs(tmp_path):
                            "--out", str(tmp_path / "case")], cwd=tmp_path, capture_output=True, text=True,
                           env=dict(os.environ, PYTHONPATH=str(ROOT)), timeout=300)
     lines = proc.stderr.splitlines()  # the preset's warning first, then the export's own (model mapping)
-    assert proc.returncode == 0 and lines[0].startswith("taimill: warning: the whole run (0.9 s)"), proc.stderr
-    assert sum("start-up ramp" in ln for ln in lines) == 1
+    assert proc.returncode == 0 and lines[0].startswith("taimill: warning: --duration 0.9 s is shorter"), proc.stderr
+    assert "the whole run (0.9 s)" in lines[0] and sum("start-up ramp" in ln for ln in lines) == 1
+
+
+# the analysis window of a shortened run: (options, window, words of its one warning line or None)
+WINDOWS = [
+    ({}, (4.0, 24.0), None),
+    ({"duration": 30.0}, (4.0, 30.0), None),  # longer: the preset's start, nothing to say
+    ({"duration": 6.0}, (4.0, 6.0), ["--duration 6 s is shorter than the preset's 24 s", "keeps the preset's "
+                                     "analysis_start = 4 s", "window is 4 … 6 s", "--analysis-start"]),
+    ({"duration": 3.0}, (0.5, 3.0), ["ends before the preset's analysis_start = 4 s", "window is 0.5 … 3 s",
+                                     "inside the 1 s start-up ramp"]),
+    ({"duration": 0.9}, (0.15, 0.9), ["window is 0.15 … 0.9 s", "the whole run (0.9 s) lies inside the 1 s start-up ramp"]),
+    ({"duration": 3.0, "analysis_start": 1.0}, (1.0, 3.0), None),  # both given: the user's window
+    ({"duration": 3.0, "analysis_start": 0.5}, (0.5, 3.0), ["starts at 0.5 s, inside the 1 s start-up ramp"]),
+]
+
+
+@pytest.mark.parametrize("options, window, words", WINDOWS, ids=lambda x: str(x))
+def test_the_analysis_window_rule_of_short_runs(options, window, words):
+    p = load_preset(CY, options)
+    assert (p.analysis_start, p.duration) == pytest.approx(window)
+    if words is None:
+        assert p.warnings == ()
+    else:
+        assert len(p.warnings) == 1 and all(w in p.warnings[0] for w in words), p.warnings
+
+
+@pytest.mark.parametrize("command", [["run", "{cy}", "--json"], ["sweep", "{cy}", "--ratio", "-2,-2.6", "--json"],
+                                     ["export", "liggghts", "{cy}", "--out", "{tmp}/case"]], ids=lambda c: c[0])
+def test_every_command_says_when_its_window_is_not_the_presets(command, tmp_path):
+    # the rule lives in load_preset: run, sweep, export (and tui, record) apply it alike, each
+    # saying so in one line (a sweep's points share theirs), and the stored window is the one said
+    from tests.inprocess import main
+
+    code, out, err = main(*(c.format(cy=CY, tmp=tmp_path) for c in command), "--duration", 0.3)
+    assert code == 0, err
+    lines = [ln for ln in err.splitlines() if "--duration 0.3 s is shorter" in ln]
+    assert len(lines) == 1 and lines[0].startswith("taimill: warning: ") and "window is 0.05 … 0.3 s" in lines[0]
+    if command[0] == "run":
+        assert json.loads(out)["analysis_window"] == pytest.approx([0.05, 0.3], abs=1e-3)
 
 
 def test_a_run_of_more_than_a_few_minutes_states_its_estimate():

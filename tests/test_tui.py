@@ -302,6 +302,39 @@ async def test_k_label_help_and_readme_define_k_alike(mill, tmp_path):
         assert str(app.query_one("#label-ratio").render()) == "K = ω/Ω + 1"
 
 
+def marks(app) -> dict:
+    """The focus gutter of every control row that shows a mark."""
+    return {w.id.removeprefix("mark-"): str(w.render()) for w in app.query(".mark") if str(w.render()).strip()}
+
+
+async def test_focus_is_marked_without_colour_and_the_held_speed_otherwise(mill, tmp_path):
+    # a monochrome terminal shows both: focus as ▶ beside the field's label, the held
+    # speed by name under the speed fields and as a bold, underlined label (not ▶)
+    from taimill.tui.controls import FOCUS_MARK
+
+    app = MillApp(mill, out_dir=tmp_path, paused=True)
+    async with app.run_test(size=SIZE) as pilot:
+        assert marks(app) == {}
+        await pilot.press("tab")
+        assert app.focused.id == "plate-rpm" and marks(app) == {"plate-rpm": FOCUS_MARK}
+        await pilot.press("tab")
+        assert marks(app) == {"ratio": FOCUS_MARK}
+        for _ in range(3):  # ω, ramp, then the contact list
+            await pilot.press("tab")
+        assert app.focused.id == "kind" and marks(app) == {"kind": FOCUS_MARK}
+        await pilot.press("escape")
+        await pilot.pause()
+        assert app.focused is None and marks(app) == {}
+        held = app.query_one("#held")
+        assert str(held.render()) == "held: K (kept when Ω changes)"
+        label = app.query_one("#label-ratio")
+        assert label.has_class("held") and label.rich_style.underline and label.rich_style.bold
+        assert not app.query_one("#label-jar-rpm").rich_style.underline
+        await enter(pilot, "jar-rpm", "-500")  # the jar speed entered as ω: ω is held now
+        assert str(held.render()) == "held: ω (kept when Ω changes)" and marks(app) == {}
+        assert app.query_one("#label-jar-rpm").rich_style.underline and not label.rich_style.underline
+
+
 async def test_side_panel_fits_120_columns(mill, tmp_path):
     app = MillApp(mill, out_dir=tmp_path, paused=True)
     async with app.run_test(size=SIZE) as pilot:

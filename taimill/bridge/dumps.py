@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import json
 import math
-import time
+import re
 from pathlib import Path
 
 import numpy as np
@@ -314,6 +314,24 @@ def _event_table(rows, geom, radii, mass, t, xg, vg, sg, g, ball_gap, wall_gap) 
 
 
 # ---------------------------------------------------------------- the case
+LOG = "log.liggghts"  #: LIGGGHTS' log in the case directory (run.sh: -log log.liggghts)
+LOOP_TIME = re.compile(r"^Loop time of ([0-9.eE+-]+) on (\d+) procs?", re.M)
+
+
+def liggghts_run_time(case) -> tuple[float, int] | None:
+    """(seconds, processes) LIGGGHTS ran the case's time steps for: the sum of its log's
+    "Loop time of X on N procs" lines (one per `run` command of the deck), read from
+    the case's LOG; None without a log or such a line (the case not run, or killed)."""
+    try:
+        text = (Path(case) / LOG).read_text(errors="replace")
+    except OSError:
+        return None
+    loops = [(float(x), int(n)) for x, n in LOOP_TIME.findall(text)]
+    if not loops:
+        return None
+    return sum(x for x, _ in loops), max(n for _, n in loops)
+
+
 def read_manifest(case) -> dict:
     path = Path(case) / MANIFEST
     if not path.exists():
@@ -326,8 +344,9 @@ def read_manifest(case) -> dict:
 
 def import_case(case, out, *, dump: str | None = None) -> dict:
     """Write the run store `out` from the dumps of the exported case directory `case`;
-    returns its summary (docs/outputs.md), events reconstructed as the module doc says."""
-    t_wall = time.perf_counter()
+    returns its summary (docs/outputs.md), events reconstructed as the module doc says.
+    Its wall_seconds is LIGGGHTS' own run time (liggghts_run_time; NaN without its
+    log), not the import's; the store's `source` attribute has it with the processes."""
     case = Path(case)
     man = read_manifest(case)
     dump_path = Path(dump) if dump else case / man["dump"]
@@ -361,7 +380,8 @@ def import_case(case, out, *, dump: str | None = None) -> dict:
         sl = slice(a, a + 1024)
         sink.frames(Frames(geom, t[sl]).block(x[sl], v[sl], s[sl]))
     sink.events(events)
-    summary = summary_sink.result(float(t[-1]), time.perf_counter() - t_wall)
+    ran = liggghts_run_time(case)
+    summary = summary_sink.result(float(t[-1]), ran[0] if ran else math.nan)
     d = geom.drive
     status = "complete" if abs(t[-1] - man["steps"] * man["dt"]) < 0.5 * man["dt"] else "incomplete dumps"
     summary.update(dt=float(man["dt"]), steps=int(steps[-1]), status=status, ratio=d.ratio, plate_rpm=d.plate_rpm)
@@ -369,7 +389,8 @@ def import_case(case, out, *, dump: str | None = None) -> dict:
     store.group.attrs.update({
         "source": {"code": "LIGGGHTS-PUBLIC", "case": str(case.resolve()), "dump": str(dump_path),
                    "mapping": man.get("mapping"), "jar_mesh": man.get("jar_mesh"),
-                   "time_step_check": man.get("time_step_check")},
+                   "time_step_check": man.get("time_step_check"),
+                   "loop_seconds": ran[0] if ran else None, "processes": ran[1] if ran else None},
         "events_source": EVENTS_SOURCE, "events_unknown_columns": list(UNKNOWN_EVENT_COLUMNS),
         "energy_source": ENERGY_SOURCE,
     })

@@ -39,6 +39,19 @@ def _emit(a, value, text, figure=None):
     print(json.dumps(_plain(value), ensure_ascii=False) if a.json else text)
 
 
+def announced(command):
+    """The command, saying on stderr when its simulations compile kernels (a first
+    drop test takes 20 s, a later one 1.3 s: physics.runner.CompilePlan)."""
+    def run(a) -> int:
+        from taimill.cli.run import say
+        from taimill.runs.simulation import announcing
+
+        with announcing(lambda plan: say(plan.text())):
+            return command(a)
+
+    return run
+
+
 def _check(value, name, lo, hi, unit, lo_open=True):
     from taimill.errors import ConfigError
 
@@ -227,7 +240,7 @@ def register(sub):
     d.add_argument("--radius-mm", type=number, help="ball radius (default: the pair's fitted balls)")
     d.add_argument("--ball-material", type=name_text, help="ball material other than the pair's contact set's: its derived set (docs/media.md)")
     d.add_argument("--wall-material", type=name_text, help="plate material other than the pair's contact set's: its derived set")
-    d.set_defaults(fn=cmd_drop)
+    d.set_defaults(fn=announced(cmd_drop))
 
     f = csub.add_parser("fit", help="fit d (or c_max; e for other laws) to measured drop tests, write a pair file")
     common(f, "measured and fitted e(h0) and the residuals", "replace an existing --out or --figure file")
@@ -236,18 +249,18 @@ def register(sub):
     f.add_argument("--scatter", type=number, default=0.02, help="1 s.d. of a measured e where the data give none (default 0.02)")
     f.add_argument("--out", type=path_text, help="pair file to write (NAME.toml), usable as pair = \"NAME.toml\" in presets")
     f.add_argument("--name", type=name_text, help="pair name inside the file (default PAIR-fit)")
-    f.set_defaults(fn=cmd_fit)
+    f.set_defaults(fn=announced(cmd_fit))
 
     s = csub.add_parser("sensitivity", help="thesis Fig 2.5: change each contact parameter by ±50 %%, rebound height")
     common(s, "the change of rebound height per parameter")
     s.add_argument("--h0", type=number, default=500.0, help="drop height (mm, default 500 as in the thesis)")
     s.add_argument("--target", choices=("plate", "ball"), default="plate")
     s.add_argument("--change", type=number, default=50.0, help="relative change of each parameter (%%, default 50)")
-    s.set_defaults(fn=cmd_sensitivity)
+    s.set_defaults(fn=announced(cmd_sensitivity))
 
     o = csub.add_parser("oblique", help="thesis Fig 2.8: two spheres with offsets, simulated vs eqs 2.3/2.4")
     common(o, "final normal and tangential relative velocities against the offset")
     o.add_argument("--speed", type=number, default=3300.0, help="relative speed (mm/s, default 3300)")
     o.add_argument("--offsets", default="0:12:1", help="centre offsets Δ in mm, A:B:STEP or A,B,C (default 0:12:1)")
     o.add_argument("--friction", action="store_true", help="use the pair's friction (default frictionless, as Fig 2.8)")
-    o.set_defaults(fn=cmd_oblique)
+    o.set_defaults(fn=announced(cmd_oblique))

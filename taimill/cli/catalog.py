@@ -21,6 +21,7 @@ def register(sub) -> None:
 
     p = sub.add_parser("presets", help="list the bundled presets (run one by name: taimill run NAME)")
     p.add_argument("--describe", action="store_true", help="each preset's description (its first sentence) instead of the table")
+    p.add_argument("--json", action="store_true", help="print the table as a JSON list (units in the key names)")
     p.set_defaults(fn=cmd_presets)
     j = sub.add_parser("jars", help="list the bundled jars and bowls (area, volume, pieces); "
                                     "'jars show NAME' draws one, 'jars new NAME' builds a cylinder")
@@ -42,6 +43,8 @@ def register(sub) -> None:
     jn.add_argument("--overwrite", action="store_true", help="replace an existing --out jar file written by jars new")
     m = sub.add_parser("mills", help="list planetary mills (R_p, gear, speeds, bowls; * marks estimates); 'mills NAME' shows one with sources")
     m.add_argument("name", nargs="?", type=name_text, help="mill name or mill file NAME.toml")
+    m.add_argument("--json", action="store_true", help="print the mills as a JSON list (units in the key names, "
+                                                       "estimated numbers listed under 'estimates')")
     m.set_defaults(fn=cmd_mills)
     mt = sub.add_parser("materials", help="list ball and jar materials (density, E, nu, e, mu) and friction pairs "
                        "(* marks an estimate); 'materials NAME' gives each number's source")
@@ -62,21 +65,29 @@ def first_sentence(path) -> str:
     return text[: end.start() + 1] if end else text
 
 
-PRESET_COLUMNS = (("preset", "<"), ("jar", "<"), ("balls", ">"), ("r mm", ">"), ("pair", "<"), ("K", ">"),
-                  ("Ω rpm", ">"), ("duration s", ">"))
+# (JSON key, table heading, alignment) of `taimill presets`
+PRESET_COLUMNS = (("name", "preset", "<"), ("mill", "mill", "<"), ("jar", "jar", "<"), ("balls", "balls", ">"),
+                  ("radius_mm", "r mm", ">"), ("pair", "pair", "<"), ("ratio_K", "K", ">"),
+                  ("plate_rpm", "Ω rpm", ">"), ("duration_s", "duration s", ">"))
 
 
-def preset_row(name: str) -> tuple[str, ...]:
-    """One bundled preset's table row; a preset that does not load shows why instead."""
+def preset_row(name: str) -> dict:
+    """One bundled preset's row, keyed by PRESET_COLUMNS; a preset that does not load
+    has its name and `error` instead."""
     from taimill.errors import ConfigError
     from taimill.model.preset import load_preset
 
     try:
         p = load_preset(name)
     except (ConfigError, OSError) as err:
-        return (name, f"(cannot load: {err})")
-    return (name, p.jar.name, str(p.balls.count), f"{p.balls.radius * 1e3:g}", p.pair, f"{p.drive.ratio:g}",
-            f"{p.drive.plate_rpm:g}", f"{p.duration:g}")
+        return {"name": name, "error": str(err)}
+    return {"name": name, "mill": p.mill.name, "jar": p.jar.name, "balls": p.balls.count,
+            "radius_mm": round(p.balls.radius * 1e3, 9), "pair": p.pair, "ratio_K": p.drive.ratio,
+            "plate_rpm": p.drive.plate_rpm, "duration_s": p.duration}
+
+
+def _cell(value) -> str:
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def cmd_presets(a) -> int:
@@ -86,15 +97,18 @@ def cmd_presets(a) -> int:
         describe([BUNDLED["preset"][0] / f"{n}.toml" for n in bundled_names("preset")])
         return 0
     rows = [preset_row(n) for n in bundled_names("preset")]
-    widths = [max([len(h)] + [len(r[i]) for r in rows if len(r) == len(PRESET_COLUMNS)])
-              for i, (h, _) in enumerate(PRESET_COLUMNS)]
+    if a.json:
+        print(json.dumps(rows, indent=1, ensure_ascii=False))
+        return 0
+    cells = [[_cell(r[k]) for k, _, _ in PRESET_COLUMNS] if "error" not in r else None for r in rows]
+    widths = [max([len(h)] + [len(c[i]) for c in cells if c]) for i, (_, h, _) in enumerate(PRESET_COLUMNS)]
 
-    def line(cells):
-        return "  ".join(f"{c:{al}{w}}" for c, (_, al), w in zip(cells, PRESET_COLUMNS, widths)).rstrip()
+    def line(values):
+        return "  ".join(f"{c:{al}{w}}" for c, (_, _, al), w in zip(values, PRESET_COLUMNS, widths)).rstrip()
 
-    print(line([h for h, _ in PRESET_COLUMNS]))
-    for r in rows:
-        print(line(r) if len(r) == len(PRESET_COLUMNS) else f"{r[0]:{widths[0]}}  {r[1]}")
+    print(line([h for _, h, _ in PRESET_COLUMNS]))
+    for r, c in zip(rows, cells):
+        print(line(c) if c else f"{r['name']:{widths[0]}}  (cannot load: {r['error']})")
     print("run one by name from any folder: taimill run NAME; its file: taimill/data/presets/NAME.toml")
     return 0
 
@@ -215,6 +229,9 @@ def cmd_mills(a) -> int:
 
     if a.name:
         mill = load_mill(a.name, "command line", Path.cwd())
+        if a.json:
+            print(json.dumps([mill.as_dict()], indent=1, ensure_ascii=False))
+            return 0
         print(f"{mill.name}: {mill.maker} {mill.model} ({mill.source})")
         if mill.description:
             print(f"  {mill.description}")
@@ -228,6 +245,9 @@ def cmd_mills(a) -> int:
             print("* estimate: not verified against a source")
         return 0
     mills = [load_mill(n, "command line") for n in mill_names()]
+    if a.json:
+        print(json.dumps([m.as_dict() for m in mills], indent=1, ensure_ascii=False))
+        return 0
     rows = [("mill", *(label for label, _ in mill_rows(mills[0])))] + [(m.name, *(v for _, v in mill_rows(m))) for m in mills]
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     for r in rows:

@@ -219,10 +219,12 @@ def open_run_store(path: str, key: str = "RUN"):
     import os
 
     from taimill.errors import ConfigError
+    from taimill.model.files import kind_of_path, name_kind
     from taimill.store.run import open_run
 
     if not os.path.exists(path):  # os.path: a name the OS refuses (too long) is no such store either
         raise ConfigError("command line", key, path, "no such run store (RUN.zarr, written by taimill run --out)")
+    name_kind("run store", kind_of_path(path), path, "command line", key)  # a preset, jar, …, sweep store
     if not os.path.isdir(path):
         raise ConfigError("command line", key, path, "is a file; need a run store folder (RUN.zarr)")
     try:

@@ -72,7 +72,7 @@ def cmd_export(a) -> int:
 
 
 def cmd_import(a) -> int:
-    from taimill.bridge.dumps import import_case
+    from taimill.bridge.dumps import LOG, import_case, liggghts_run_time
     from taimill.bridge.liggghts import MANIFEST
     from taimill.errors import ConfigError
     from taimill.store.output import Output
@@ -90,11 +90,16 @@ def cmd_import(a) -> int:
                 keep=lambda _: False) as out:
         summary = import_case(a.case, out.build, dump=a.dump)
         out.commit()
+    ran = liggghts_run_time(a.case)
+    if ran is None:
+        print(f"taimill: warning: {Path(a.case) / LOG}: no \"Loop time of\" line (no log, or LIGGGHTS was stopped): "
+              "LIGGGHTS' run time is unknown, the summary's wall time and speed are empty", file=sys.stderr)
     if a.json:
         print(json.dumps(plain(summary)))
         return 0
-    print(f"{a.case}: LIGGGHTS dumps, {summary['sim_seconds']:g} s; collision events reconstructed from the frames "
-          "(store attribute events_source); no energy ledger (energy_source)")
+    took = f"LIGGGHTS ran them in {ran[0]:.4g} s on {ran[1]} process{'es' if ran[1] != 1 else ''} ({LOG})" if ran else ""
+    print(f"{a.case}: LIGGGHTS dumps, {summary['sim_seconds']:g} s{'; ' + took if took else ''}; collision events "
+          "reconstructed from the frames (store attribute events_source); no energy ledger (energy_source)")
     print(summary_table(summary))
     print(f"stored in {a.out}")
     return 0

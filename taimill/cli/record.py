@@ -22,9 +22,13 @@ def _existing(path: str, key: str, folder: bool) -> Path:
     """An existing store folder (folder=True) or file (a recording)."""
     from taimill.errors import ConfigError
 
+    from taimill.model.files import kind_of_path, name_kind
+
     p = Path(path)
     if not os.path.exists(p):  # os.path: a name the OS refuses (too long) is no such file either
         raise ConfigError("command line", key, path, "no such file or directory")
+    if folder:  # a preset, jar, …, sweep store given as the run store
+        name_kind("run store", kind_of_path(p), path, "command line", key)
     if folder and not os.path.isdir(p):
         raise ConfigError("command line", key, path, "is a file; need a run store folder (RUN.zarr)")
     if not folder and not os.path.isfile(p):

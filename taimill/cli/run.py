@@ -70,7 +70,7 @@ def cmd_run(a) -> int:
             if show_bar:
                 summary = _run_with_bar(run, preset, sink)
             else:
-                summary = run(preset, sink)
+                summary = run(preset, sink, notice=say)
         except SimulationUnstable as err:
             print(f"taimill: {err}" + (f" ({outputs.kept()})" if outputs.items else ""), file=sys.stderr)
             return EXIT_UNSTABLE
@@ -137,6 +137,11 @@ def _with_status(text, fn, *args, console=None):
         return fn(*args)
 
 
+def say(text: str) -> None:
+    """A line on stderr that explains a wait ("taimill: compiling kernels for …")."""
+    print(f"taimill: {text}", file=sys.stderr, flush=True)
+
+
 def _run_with_bar(run, preset, sink, console=None):
     """The run under a progress bar on stderr. Until the first launch returns (set-up:
     summary and store, Taichi's fields, kernel compilation, seconds) the bar names the
@@ -153,4 +158,7 @@ def _run_with_bar(run, preset, sink, console=None):
                 bar.reset(task, total=preset.duration, description="simulating")
             bar.update(task, completed=t, done=f"{t:.2f}/{preset.duration:.1f} s")
 
-        return run(preset, sink, progress=progress, stage=stage)
+        def notice(text):  # above the bar, kept when the bar goes
+            bar.console.print(f"taimill: {text}", markup=False, highlight=False)
+
+        return run(preset, sink, progress=progress, stage=stage, notice=notice)

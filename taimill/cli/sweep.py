@@ -136,9 +136,16 @@ def cmd_sweep(a) -> int:
             with Progress(TextColumn("sweeping"), BarColumn(), TextColumn("{task.completed:.1f}/{task.total:.1f} mill-s"),
                           TimeRemainingColumn(), transient=True, console=_stderr_console()) as bar:
                 task = bar.add_task("sweep", total=1.0)  # the real total comes with the first report
-                rows, peaks = run_sweep(req, store, progress=lambda d, t: bar.update(task, completed=d, total=t), **run_kw)
+
+                def notice(text):  # above the bar, kept when the bar goes
+                    bar.console.print(f"taimill: {text}", markup=False, highlight=False)
+
+                rows, peaks = run_sweep(req, store, progress=lambda d, t: bar.update(task, completed=d, total=t),
+                                        notice=notice, **run_kw)
         else:
-            rows, peaks = run_sweep(req, store, **run_kw)
+            from taimill.cli.run import say
+
+            rows, peaks = run_sweep(req, store, notice=say, **run_kw)
     axes = sweep_axes_of(rows, points)
     rows, groups = with_regimes(rows, axes)
     if a.map:

@@ -35,12 +35,14 @@ def cmd_tui(a) -> int:
     from taimill.cli.common import print_warnings
 
     print_warnings(preset)
-    print("taimill: compiling the kernels …", file=sys.stderr)
+    from taimill.cli.run import say
+    from taimill.runs.simulation import announcing
     from taimill.runs.live import LiveMill
     from taimill.runs.signals import sigterm_interrupts
     from taimill.tui.app import MillApp
 
-    with sigterm_interrupts():  # while compiling: SIGTERM as Ctrl-C (one line, 143)
+    # while compiling: SIGTERM as Ctrl-C (one line, 143); the wait explained (CompilePlan)
+    with sigterm_interrupts(), announcing(lambda plan: say(plan.text())):
         mill = LiveMill(preset, overrides)  # main thread: ti.init, fields, first kernel call
     app = MillApp(mill, out_dir=out_dir, window=a.window, paused=a.paused)
     app.run()

@@ -144,6 +144,10 @@ def resolve(name_or_path, kind: str, given_on_command_line: bool, base: Path | N
     otherwise. `source` and `key` (default: "command line" or `base`, and `kind`) are
     who named it, for the error; a path is not checked here (reading it says why)."""
     text = os.fspath(name_or_path)
+    here = Path(text) if given_on_command_line or base is None else Path(base) / text
+    if os.path.isdir(here):  # a store folder where a file is meant: named as such (os.path: never raises)
+        name_kind(kind, kind_of_path(here), text, source or ("command line" if given_on_command_line else base),
+                  key or kind)
     if not is_name(text):
         p = Path(text)
         return p if p.is_absolute() or given_on_command_line or base is None else Path(base) / p
@@ -183,17 +187,44 @@ USES = {
     "jar": "use it with --jar {path} or jar = \"{path}\" in a preset",
     "pair": "use it with --pair {path} or pair = \"{path}\" in a preset",
     "mill": "use it with mill = \"{path}\" in a preset",
+    "run store": "read it with `taimill analyse {path}` or `taimill report {path}`",
+    "sweep store": "draw it with `taimill report {path}`",
 }
+#: kinds that are folders (zarr stores), told apart by the arrays they hold
+STORE_LAYOUTS = {"sweep store": ("points", "table"), "run store": ("trajectory", "events")}
+
+
+def kind_of_path(path) -> str | None:
+    """Which kind of taimill file or folder `path` is: a store folder ("run store",
+    "sweep store": a zarr group holding their arrays), a TOML file's kind (kind_of), or
+    None (missing, unreadable, or none of these)."""
+    p = Path(path)
+    try:
+        if os.path.isdir(p):
+            if not ((p / "zarr.json").is_file() or (p / ".zgroup").is_file()):
+                return None
+            return next((k for k, arrays in STORE_LAYOUTS.items() if all((p / a).is_dir() for a in arrays)), None)
+        if os.path.isfile(p) and p.suffix == ".toml" and p.stat().st_size < (1 << 20):
+            return kind_of(tomllib.loads(p.read_text(encoding="utf-8")))
+    except (OSError, ValueError):  # unreadable, not UTF-8, not TOML: the reader says why
+        return None
+    return None
+
+
+def name_kind(kind: str, found: str | None, path, source, key) -> None:
+    """Refuse `path`, given where a `kind` is expected, if it is of another known kind
+    (kind_of_path), in one line that says what it is and how to use it."""
+    if found is not None and found != kind:
+        noun = kind if kind.endswith("store") else f"{kind} file"
+        what = found if found.endswith("store") else f"{found} file"
+        raise ConfigError(source, key, str(path), f"this is a {what}, not a {noun}; " + USES[found].format(path=path))
 
 
 def check_kind(data: dict, kind: str, path, source, key) -> None:
     """Refuse, in one line that says how to use it, a file of another kind than `kind`
     (a jar file given as a preset…); a file of no recognisable kind is left to the
     loader's key checks."""
-    found = kind_of(data)
-    if found is not None and found != kind:
-        raise ConfigError(source, key, str(path), f"this is a {found} file, not a {kind} file; "
-                          + USES[found].format(path=path))
+    name_kind(kind, kind_of(data), path, source, key)
 
 
 def _inside(path: Path, folder: Path) -> bool:

@@ -5,6 +5,7 @@ the frozen dataclasses they load into, in SI units (kg, Pa, m, m/s)."""
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -131,6 +132,9 @@ def load_friction(name: str, source, key="pair", base: Path | None = None) -> tu
         return _pair_file(name, source, key, base)
     db = _materials_db()
     if name not in db["pair"]:
+        folder = Path(base or ".") / name
+        if os.path.isdir(folder):  # a store given as the pair: named as such (os.path: never raises)
+            files.name_kind("pair", files.kind_of_path(folder), name, source, key)
         raise ConfigError(source, key, name, f"must be one of {', '.join(db['pair'])}, or a pair file NAME.toml")
     t = Table(db["pair"][name], MATERIALS_FILE, f"pair.{name}.", known=("contact", "source", *FRICTION_KEYS))
     contact = t.get("contact", None, kind=str)

@@ -118,6 +118,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
                           f"runs from any folder as `taimill run {path.stem}`")
     data = read_toml(path, "preset", "command line")
     files.check_kind(data, "preset", text, "command line", "preset")
+    file_duration = data.get("duration")  # the preset's own, for its analysis window (rules.analysis_window)
     source = str(path)
     Table(data, source, known=PRESET_KEYS)
     for key, value in overrides.items():
@@ -207,13 +208,18 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     rules.plate_fits_jar(t.where("plate_radius_mm"), plate_radius, jar)
 
     duration = t.get("duration", lo=0, lo_open=True, hi=36000)
-    if "duration" in overridden and "analysis_start" not in overridden and data.get("analysis_start", 0) >= duration:
-        # a short run asked for on the command line keeps the thesis' proportion (4 of 24 s)
-        data["analysis_start"] = duration / 6.0
+    ramp_time = t.get("ramp_time", 1.0, **(RANGES["ramp_time"].bounds | {"hi": duration}))
+    window_note = None
+    given_start = data.get("analysis_start", 0.0)
+    if isinstance(given_start, (int, float)) and not isinstance(given_start, bool):  # else t.get refuses it
+        start, window_note = rules.analysis_window(
+            given_start, file_duration if isinstance(file_duration, (int, float)) else None, duration, ramp_time,
+            start_given="analysis_start" in overridden, duration_given="duration" in overridden)
+        if start != given_start:
+            data["analysis_start"] = start
     analysis_start = t.get("analysis_start", 0.0, lo=0, hi=duration)
     if analysis_start >= duration:
         raise ConfigError(source, "analysis_start", analysis_start, f"must be below duration = {duration:g} s")
-    ramp_time = t.get("ramp_time", 1.0, **(RANGES["ramp_time"].bounds | {"hi": duration}))
     drive = Drive.from_rpm(plate_rpm, **{jar_key: jar_speed}, ramp_time=ramp_time)
     rules.jar_speed_fits(t.where(jar_key), jar_key, jar_speed, drive)
     if mill.gear.kind != "fixed":
@@ -249,7 +255,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
         if rules.measured_set_applies(table.get("ball"), table.get("wall"), balls, jar):
             measured = table.get("ball_radius_mm")
     checks = (rules.ball_size_note(balls.radius, measured * 1e-3 if isinstance(measured, (int, float)) else None, contact),
-              rules.start_up_note(analysis_start, duration, ramp_time))
+              window_note)
     warnings += [*notes, *(n for n in checks if n)]
     return Preset(
         source, jar, balls, pair, friction, ball_ball, ball_wall, drive, plate_radius,

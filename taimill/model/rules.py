@@ -243,6 +243,39 @@ def ball_size_note(radius: float, measured: float | None, contact: str) -> str |
             f"'{contact}' was measured for; its damping may not hold at this size (radius_mm is in mm)")
 
 
+#: where the analysis window of a run shortened on the command line starts when the
+#: preset's start no longer fits: this fraction of the run, the thesis' 4 of 24 s
+SHORT_RUN_START = 1.0 / 6.0
+
+
+def analysis_window(file_start: float, file_duration: float | None, duration: float, ramp_time: float, *,
+                    start_given: bool, duration_given: bool) -> tuple[float, str | None]:
+    """The analysis window's start (s) and a warning line or None: the one rule, applied
+    by load_preset for every command that simulates (run, sweep, record, export).
+
+    - analysis_start as the preset file or --analysis-start gives it, when either was
+      given on the command line with --duration, or the run is not shortened;
+    - a --duration shorter than the preset's keeps the preset's analysis_start when it
+      lies below it (--duration 6 of a preset analysing 4 … 24 s: 4 … 6 s);
+    - else the window starts at SHORT_RUN_START of the run (--duration 0.9: 0.15 … 0.9 s).
+    The line says so whenever --duration shortened the preset's window, and when the
+    window begins inside the start-up ramp (start_up_note), in one line.
+    file_start, file_duration: the preset's (file_start the command line's when
+    start_given); duration, ramp_time: the run's (s)."""
+    if start_given or not duration_given or file_duration is None or duration >= file_duration:
+        return file_start, start_up_note(file_start, duration, ramp_time)
+    if file_start < duration:
+        start, how = file_start, f"keeps the preset's analysis_start = {file_start:g} s"
+    else:
+        start = duration * SHORT_RUN_START
+        how = f"ends before the preset's analysis_start = {file_start:g} s, so the window starts at duration/6"
+    line = (f"--duration {duration:g} s is shorter than the preset's {file_duration:g} s and {how}: the analysis "
+            f"window is {start:.4g} … {duration:g} s (the preset's {file_start:g} … {file_duration:g} s); "
+            f"--analysis-start sets its start")
+    ramp = start_up_note(start, duration, ramp_time)
+    return start, line + (f"; {ramp}" if ramp else "")
+
+
 def start_up_note(analysis_start: float, duration: float, ramp_time: float) -> str | None:
     """A line if the analysis window (analysis_start … duration, s) begins inside the
     start-up ramp (0 … ramp_time, s), where the speeds still rise: its figures would mix

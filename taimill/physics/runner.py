@@ -2,6 +2,7 @@
 sink, faults.
 
     Runner(specs) — advances any batch of MillSpecs (runs, tests, calibration, sweeps).
+    compile_plan(specs) — whether a Runner of these mills compiles kernels, and for how long.
 
 A sink here is any object with the `events`, `frames` and `energy` calls of
 `taimill.store.sinks.Sink` (and, if it has one, `spectra`: the mill's energy spectra
@@ -11,17 +12,23 @@ so far after each drain); the runner never imports a sink.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
+import functools
+import hashlib
 import io
+import json
 import math
 import os
 import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import taichi as ti
 
 from taimill.errors import SimulationUnstable
 from taimill.physics import state as S
-from taimill.physics.engine import Engine
+from taimill.physics.engine import Engine, advance_fused, begin_step, export_events, export_frames
 from taimill.physics.mill import write_mill
 from taimill.model.spec import MillSpec, grid_cells_for
 from taimill.model.spectra import Spectra
@@ -50,22 +57,32 @@ FRAME_CAPACITY = (256, 32768)
 _engines: dict = {}
 
 
-def _engine(batch, balls, mode, use_grid, cells, frames=FRAME_CAPACITY[0], pool=None, reorder=None,
-            models=None) -> Engine:
-    """Engines are reused within a process: new fields mean new kernel instances, and
-    compiling those costs ≈ 1.3 s each. Ball counts with the same padded row length
-    (Engine.BALL_PAD) share one engine: its fields are identical; so do frame
-    capacities up to one of an engine already made. The contact models (per contact
-    type, compiled into the kernels) must be the same."""
+def _engine_key(batch, balls, mode, use_grid, cells, frames=FRAME_CAPACITY[0], pool=None, reorder=None,
+                models=None) -> tuple:
+    """What an engine's fields and kernels depend on: ball counts with the same padded
+    row length (Engine.BALL_PAD) share fields, as do frame capacities up to one of an
+    engine already made (the last entry, compared as "at least")."""
     balls = -(-balls // Engine.BALL_PAD) * Engine.BALL_PAD
-    frames = frames if mode == "fused" else 8
-    for (b, n, m, g, c, p, r, mo, f), engine in _engines.items():
-        if (b, n, m, g, c, p, r, mo) == (batch, balls, mode, use_grid, cells, pool, reorder, models) and f >= frames:
+    return batch, balls, mode, use_grid, cells, pool, reorder, models, frames if mode == "fused" else 8
+
+
+def _existing(key) -> Engine | None:
+    for k, engine in _engines.items():
+        if k[:-1] == key[:-1] and k[-1] >= key[-1]:
             return engine
-    key = (batch, balls, mode, use_grid, cells, pool, reorder, models, frames)
-    _engines[key] = Engine(batch, balls, mode=mode, use_grid=use_grid, grid_cells=cells, frame_capacity=frames,
-                           pool=pool, reorder=reorder, models=models)
-    return _engines[key]
+    return None
+
+
+def _engine(key: tuple) -> Engine:
+    """Engines are reused within a process: new fields mean new kernel instances, and
+    compiling those costs ≈ 1.3 s each. The contact models (per contact type, compiled
+    into the kernels) must be the same. key: _engine_key's."""
+    engine = _existing(key)
+    if engine is None:
+        batch, balls, mode, use_grid, cells, pool, reorder, models, frames = key
+        engine = _engines[key] = Engine(batch, balls, mode=mode, use_grid=use_grid, grid_cells=cells,
+                                        frame_capacity=frames, pool=pool, reorder=reorder, models=models)
+    return engine
 
 
 def models_of(specs: list[MillSpec]) -> tuple:
@@ -88,13 +105,137 @@ def frame_capacity(specs: list[MillSpec]) -> int:
 STALE_LOCK_SECONDS = 600.0
 
 
+def cache_folder() -> str:
+    """Taichi's offline kernel cache (TI_OFFLINE_CACHE_FILE_PATH, else ~/.cache/taichi/ticache)."""
+    return os.environ.get("TI_OFFLINE_CACHE_FILE_PATH") or os.path.expanduser("~/.cache/taichi/ticache")
+
+
+# s, compiling the kernels of one engine (Runner.setup_seconds: Taichi's start, fields,
+# kernels), fused mode, 12 balls, measured on the 2-core AMD EPYC machine the project is
+# developed on with `taimill run p4-cy-steel` and a fresh TI_OFFLINE_CACHE_FILE_PATH:
+# 19.7 s the first time, 2.0 s from Taichi's cache. Used until this machine has
+# measured its own (the markers).
+FIRST_COMPILE_SECONDS = 19.7
+CACHED_COMPILE_SECONDS = 2.0
+# CPU s of a set-up above which its kernels were compiled, not read from Taichi's cache:
+# a Runner of those 12 balls took 21.3 s CPU the first time and 1.25 s from the cache
+# (Runner.setup_seconds, the same machine). CPU time, not wall time: other processes on
+# the cores stretch the wall time (127 s and 8.0 s in that measurement, while other jobs
+# shared both cores) but hardly the CPU time.
+FIRST_COMPILE_CPU_SECONDS = 5.0
+
+
+@dataclasses.dataclass(frozen=True)
+class CompilePlan:
+    """Whether a Runner of some mills compiles kernels in this process, and for how long."""
+
+    balls: int  #: the largest mill's ball count
+    needed: bool  #: no engine of this shape in this process yet: kernels are compiled
+    first: bool  #: no earlier run of this shape on this machine (as far as the markers tell)
+    seconds: float  #: expected compile time: this shape's last measured one, or a first compile's
+    marker: str  #: the marker file recording this shape's compiles
+
+    def text(self) -> str:
+        """"compiling kernels for 12 balls (first run of this size, ≈ 20 s)"."""
+        why = "first run of this size" if self.first else "from the kernel cache"
+        return (f"compiling kernels for {self.balls} ball{'s' if self.balls != 1 else ''} "
+                f"({why}, ≈ {self.seconds:.2g} s)")
+
+
+_listener = None  # told of every compile a Runner without its own on_compile does (announcing)
+
+
+@contextlib.contextmanager
+def announcing(on_compile):
+    """Within: every Runner made without an `on_compile` of its own calls this one (a
+    command whose simulations are made deep inside, as calibration's, says it compiles)."""
+    global _listener
+    before, _listener = _listener, on_compile
+    try:
+        yield
+    finally:
+        _listener = before
+
+
+@functools.lru_cache(maxsize=1)
+def _source_digest() -> str:
+    """Of every file whose code the kernels are compiled from (physics and model), so
+    that changed kernels count as a new shape."""
+    h = hashlib.sha256(str(getattr(ti, "__version__", "")).encode())
+    root = Path(__file__).resolve().parent.parent
+    for path in sorted([*root.glob("physics/*.py"), *root.glob("model/**/*.py")]):
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _runner_shape(specs, mode=None, use_grid=None, pool=None, reorder=None) -> tuple:
+    """The engine key (_engine_key) a Runner of `specs` uses."""
+    n = max(s.n for s in specs)
+    use_grid = n > ALL_PAIRS_UP_TO if use_grid is None else use_grid
+    # a history model's contact is computed once, by its owner: the fused mode's order
+    history = any(m.tangential.history or m.rolling.history for s in specs for m in s.contact_models)
+    mode = mode or ("parallel" if len(specs) == 1 and n > PARALLEL_ABOVE and not history else "fused")
+    cells = 1 << max(grid_cells_for(s) for s in specs).bit_length()
+    return _engine_key(len(specs), n, mode, use_grid, cells, frame_capacity(specs), pool, reorder, models_of(specs))
+
+
+def _markers() -> Path:
+    """Where taimill notes which engine shapes were compiled on this machine: beside
+    Taichi's cache folder (whose own index says nothing a caller could read)."""
+    return Path(cache_folder()).parent / "taimill-kernels"
+
+
+def _read(path: Path) -> dict:
+    try:
+        data = json.loads(path.read_text())
+        return data if isinstance(data, dict) else {}
+    except (OSError, ValueError):
+        return {}
+
+
+def compile_plan(specs: list[MillSpec], **options) -> CompilePlan:
+    """What Runner(specs, **options) will compile. A shape (padded ball count, batch,
+    grid, contact models, …) counts as compiled before when its marker file exists:
+    written after each compile with its measured time. The expected time is this
+    shape's last compile from the cache, else this machine's last first or cached
+    compile (machine.json), else FIRST_ or CACHED_COMPILE_SECONDS. Taichi's cache drops
+    its least recently used kernels beyond 100 MB: a shape compiled long ago may
+    compile anew while called cached."""
+    key = _runner_shape(specs, **options)
+    models = tuple(tuple(m.name for m in ms) for ms in key[-2])
+    name = hashlib.sha256(repr((_source_digest(), key[:-2], models, key[-1])).encode()).hexdigest()[:24]
+    marker = _markers() / f"{name}.json"
+    mine, machine = _read(marker), _read(_markers() / "machine.json")
+    first = "seconds" not in mine
+    if first:
+        seconds = machine.get("first_seconds", FIRST_COMPILE_SECONDS)
+    else:
+        seconds = mine["seconds"] if not mine.get("first") else machine.get("cached_seconds", CACHED_COMPILE_SECONDS)
+    return CompilePlan(max(s.n for s in specs), _existing(key) is None, first, float(seconds), str(marker))
+
+
+def _record_compile(plan: CompilePlan, seconds: float, cpu_seconds: float) -> None:
+    """Note this shape as compiled, with its time (wall s), and the time as this
+    machine's latest first or cached compile: a first compile if it took more than
+    FIRST_COMPILE_CPU_SECONDS of CPU (a shape without a marker may find Taichi's cache
+    filled by a run before the markers). Best effort: a folder that cannot be written
+    only loses the note."""
+    first = cpu_seconds > FIRST_COMPILE_CPU_SECONDS
+    try:
+        _markers().mkdir(parents=True, exist_ok=True)
+        Path(plan.marker).write_text(json.dumps({"seconds": round(seconds, 3), "first": first, "balls": plan.balls}))
+        machine = _read(_markers() / "machine.json")
+        machine["first_seconds" if first else "cached_seconds"] = round(seconds, 3)
+        (_markers() / "machine.json").write_text(json.dumps(machine))
+    except OSError:
+        pass
+
+
 def clear_stale_cache_lock(cache_dir: str | os.PathLike | None = None, now: float | None = None) -> bool:
     """Remove the offline cache's lock file if it is older than STALE_LOCK_SECONDS;
     True if one was removed. `cache_dir`: Taichi's cache folder, which holds the lock
     (TI_OFFLINE_CACHE_FILE_PATH, else ~/.cache/taichi/ticache)."""
-    import time
-
-    cache_dir = cache_dir or os.environ.get("TI_OFFLINE_CACHE_FILE_PATH") or os.path.expanduser("~/.cache/taichi/ticache")
+    cache_dir = cache_dir or cache_folder()
     lock = os.path.join(cache_dir, "ticache.lock")
     try:
         age = (time.time() if now is None else now) - os.stat(lock).st_mtime
@@ -205,21 +346,23 @@ class Runner:
     """Advances a batch of mills to their step targets, streaming to one sink each."""
 
     def __init__(self, specs: list[MillSpec], *, mode: str | None = None, use_grid: bool | None = None,
-                 pool: int | None = None, reorder: bool | None = None):
+                 pool: int | None = None, reorder: bool | None = None, on_compile=None):
         """`use_grid`: neighbour lists from the spatial hash (default above
         ALL_PAIRS_UP_TO balls) or from all pairs (the same lists); `pool`: rows of each
         mill's open-contact pool (tests; default state.pool_rows); `reorder`: ball rows
-        in grid order (tests; default: in parallel mode, Engine)."""
+        in grid order (tests; default: in parallel mode, Engine); `on_compile(plan)`:
+        called with the CompilePlan before kernels are compiled (not when this
+        process has them). `setup_seconds`: wall time of this set-up (Taichi's start,
+        fields, loading the mills, compiling), which a run's speed leaves out."""
+        t0, cpu0 = time.perf_counter(), time.process_time()
+        plan = compile_plan(specs, mode=mode, use_grid=use_grid, pool=pool, reorder=reorder)
+        on_compile = on_compile or _listener
+        if plan.needed and on_compile:
+            on_compile(plan)
         init_taichi()
         self.specs = specs
-        n = max(s.n for s in specs)
-        use_grid = n > ALL_PAIRS_UP_TO if use_grid is None else use_grid
-        # a history model's contact is computed once, by its owner: the fused mode's order
-        history = any(m.tangential.history or m.rolling.history for s in specs for m in s.contact_models)
-        mode = mode or ("parallel" if len(specs) == 1 and n > PARALLEL_ABOVE and not history else "fused")
-        cells = 1 << max(grid_cells_for(s) for s in specs).bit_length()
-        self.engine = _engine(len(specs), n, mode, use_grid, cells, frame_capacity(specs), pool, reorder,
-                              models_of(specs))
+        self.engine = _engine(_runner_shape(specs, mode, use_grid, pool, reorder))
+        mode = self.engine.mode
         every = min(s.frame_every for s in specs)
         # a launch of `room` steps from a frame step takes exactly frame_capacity frames
         # (engine.can_step): a power of two, so that a dense trajectory's chunks (at most
@@ -233,6 +376,27 @@ class Runner:
             self.steps_per_launch = 1000
         for b, spec in enumerate(specs):
             write_mill(self.engine.F, b, spec)
+        if plan.needed:
+            self._compile()
+        self.setup_seconds = time.perf_counter() - t0
+        if plan.needed:
+            _record_compile(plan, self.setup_seconds, time.process_time() - cpu0)
+
+    def _compile(self):
+        """Compile the launch and drain kernels now, by calling them with nothing to do
+        (no steps, no rows), so that a run's first launch is simulation only. In
+        parallel mode only the step's first kernel can be called so: its others compile
+        in the first launch, whose time the run's speed then includes."""
+        F, e = self.engine.F, self.engine
+        if e.mode == "fused":
+            advance_fused(F, 0, e.margin, e.use_grid)
+        else:
+            begin_step(F, e.margin)
+        nb = int(F.model.n_balls[0])
+        export_events(F, 0, 0, np.zeros((1, S.NCOL)))
+        export_frames(F, 0, 0, nb, *e._frame_arrays(0, 1, nb))
+        e._spare.clear()  # the drain's own arrays, sized for its frames
+        e.spectra()  # the copies a drain to a sink with spectra makes (reads only)
 
     def done(self) -> bool:
         F = self.engine.F

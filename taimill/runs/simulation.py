@@ -11,7 +11,7 @@ from taimill.analysis.summary import SummarySink
 from taimill.errors import SimulationUnstable
 from taimill.model.spec import from_preset
 from taimill.outcome.dose import dose_keys, shear_keys
-from taimill.physics.runner import Runner
+from taimill.physics.runner import Runner, announcing  # announcing: the CLI says when kernels compile
 from taimill.runs import signals
 from taimill.runs.signals import sigterm_interrupts
 from taimill.schema import with_units
@@ -89,13 +89,21 @@ class WholeLaunches(Relay):
         self.sink.finish(summary, status)
 
 
-def run(preset, sink=None, *, duration: float | None = None, progress=None, stage=None) -> dict:
+def run(preset, sink=None, *, duration: float | None = None, progress=None, stage=None, notice=None) -> dict:
     """Simulate one preset; streams to `sink`; returns the run summary (docs/outputs.md).
     Ctrl-C and SIGTERM (signals.sigterm_interrupts) end it with status "interrupted",
     any other error with "failed: …"; the sink is finished either way. `progress(t)`
     gets the simulated time after every launch, `stage(text)` each set-up phase as it
-    begins (seconds each for 10⁵ balls: the CLI's progress bar shows them)."""
+    begins (seconds each for 10⁵ balls: the CLI's progress bar shows them), `notice(text)`
+    what the caller should say in a line of its own: the kernels are compiled, and for
+    how long (physics.runner.CompilePlan). The summary's wall time and speed leave the
+    set-up and compiling out (Runner.setup_seconds)."""
     stage = stage or (lambda text: None)
+
+    def on_compile(plan):
+        stage(plan.text() + "…")
+        if notice:
+            notice(plan.text())
     sink = sink or NullSink()
     n = preset.balls.count
     if preset.initial_positions is None:
@@ -104,9 +112,9 @@ def run(preset, sink=None, *, duration: float | None = None, progress=None, stag
     stage(f"setting up {n} balls: summary, store, Taichi fields…")
     summary, out = start_point(preset, spec, sink)
     out = WholeLaunches(out)
+    runner = Runner([spec], on_compile=on_compile)
+    stage("first neighbour lists, first launch…")
     t0 = time.perf_counter()
-    runner = Runner([spec])
-    stage("compiling kernels, first neighbour lists…")
     status = "complete"
     with sigterm_interrupts():
         try:
@@ -124,3 +132,17 @@ def run(preset, sink=None, *, duration: float | None = None, progress=None, stag
             result = point_result(preset, spec, summary, runner, 0, time.perf_counter() - t0, status)
             out.finish(result, status)
     return result
+
+
+def compile_texts(job_chunks) -> list[str]:
+    """What the worker processes of a sweep compile before they simulate, one line per
+    engine shape (physics.runner.CompilePlan.text): each worker compiles each shape of
+    the chunks it runs once. `job_chunks`: lists of executors.Job."""
+    from taimill.physics.runner import compile_plan
+
+    texts = {}
+    for chunk in job_chunks:
+        shape = (len(chunk), chunk[0].preset.balls.count, chunk[0].preset.jar.source)
+        if shape not in texts:
+            texts[shape] = compile_plan([from_preset(j.preset) for j in chunk]).text()
+    return list(dict.fromkeys(texts.values()))

@@ -266,10 +266,11 @@ class Progress:
 
 
 def execute(points, store: SweepStore | None, *, batch=None, workers=None, scheduler=None,
-            progress=None) -> dict[int, dict]:
+            progress=None, notice=None) -> dict[int, dict]:
     """Run the points not yet in the store in chunks of `batch` mills (default
     auto_batch) on `workers` local processes (default one per core) or the dask
-    scheduler at `scheduler`; returns {point index: table row} for all points."""
+    scheduler at `scheduler`; returns {point index: table row} for all points.
+    `notice(text)`: told which kernels the workers compile first."""
     if store is not None:
         index = store.add_points(points)
         done = store.done()
@@ -282,6 +283,11 @@ def execute(points, store: SweepStore | None, *, batch=None, workers=None, sched
     # a cluster's size is unknown here and a dask task round trip costs milliseconds: B = 1
     all_chunks = chunks(jobs, batch or (1 if scheduler else auto_batch(len(jobs), workers)))
     if all_chunks:
+        if notice:
+            from taimill.runs.simulation import compile_texts
+
+            for text in compile_texts(all_chunks):
+                notice(text)
         prog = Progress(all_chunks, progress)
         keep = store is not None
         if scheduler:

@@ -11,6 +11,11 @@ its range); the input's red border while typing uses the same limits. When Ω ch
 with a lower μ_d is one change, not one refused for μ_d > μ_s. The `contact` choice
 says which contacts the friction fields and the pair apply to; the fields show that
 kind's values ("both" shows ball-ball's).
+
+Which field has focus and which speed is held are shown without colour, so that a
+monochrome terminal shows them too: the focused field's row is marked FOCUS_MARK in a
+gutter left of its label; the held speed's label is bold and underlined, and a line
+under the speed fields names it.
 """
 
 from __future__ import annotations
@@ -56,12 +61,23 @@ def shown(key: str, value) -> str:
     return f"{value:d}" if isinstance(value, int) else f"{value:.5g}"
 
 
+FOCUS_MARK = "▶"  #: in the gutter of the row whose field has focus
+HELD = {"ratio": "K", "jar_rpm": "ω"}  #: the held speed as the line under the speed fields names it
+
+
+def held_text(hold: str) -> str:
+    """The line naming the speed kept when Ω changes."""
+    return f"held: {HELD[hold]} (kept when Ω changes)"
+
+
 class Controls(Vertical):
     DEFAULT_CSS = """
     Controls { width: 34; padding: 0 1; }
     Controls .row { height: 1; margin: 0 0 1 0; }
-    Controls .row Label { width: 13; }
-    Controls .row Label.held { text-style: bold; color: $accent; }
+    Controls .row .mark { width: 2; }
+    Controls .row Label { width: 12; }
+    Controls .row Label.held { text-style: bold underline; color: $accent; }
+    Controls #held { margin: 0 0 1 0; }
     Controls .row Input, Controls .row Select { width: 1fr; }
     Controls .title { text-style: bold; }
     Controls .hint { color: $text-muted; margin: 0 0 1 0; }
@@ -92,18 +108,45 @@ class Controls(Vertical):
             check = Integer(lo, hi) if key == "balls" else Number(lo, hi)
             if fid == "mu-s":
                 with Horizontal(classes="row"):
+                    yield from self._gutter("kind")
                     yield Label("contact")
                     yield Select(self.KINDS, value=self.kind, allow_blank=False, id="kind", compact=True)
             with Horizontal(classes="row"):
+                yield from self._gutter(fid)
                 yield Label(label, id=f"label-{fid}")
                 yield Input(shown(key, values[key]), id=fid, validators=[check], select_on_focus=True, compact=True)
+            if fid == "jar-rpm":
+                yield Static(held_text(self.hold), id="held", markup=False)
         with Horizontal(classes="row"):
+            yield from self._gutter("pair")
             yield Label("pair")
             yield Select([(p, p) for p in pairs_for(self.values["pair"])], value=self.values["pair"], allow_blank=False, id="pair", compact=True)
         with Horizontal(classes="row"):
+            yield from self._gutter("jar")
             yield Label("jar")
             jars = dict.fromkeys([*jar_names(), self.values["jar"]])  # also a jar file or a mill's bowl in use
             yield Select([(j, j) for j in jars], value=self.values["jar"], allow_blank=False, id="jar", compact=True)
+
+    @staticmethod
+    def _gutter(fid: str):
+        yield Static("", id=f"mark-{fid}", classes="mark", markup=False)
+
+    def _mark_focus(self, widget, focused: bool):
+        """FOCUS_MARK beside the row of `widget` (a field, or the list a Select opens)
+        while it has focus."""
+        while widget is not None and widget is not self and not widget.id:
+            widget = widget.parent
+        if widget is None or widget is self:
+            return
+        marks = self.query(f"#mark-{widget.id}")
+        if marks:
+            marks.first(Static).update(FOCUS_MARK if focused else "")
+
+    def on_descendant_focus(self, event):
+        self._mark_focus(event.widget, True)
+
+    def on_descendant_blur(self, event):
+        self._mark_focus(event.widget, False)
 
     def on_mount(self):
         self._mark_held()
@@ -124,6 +167,7 @@ class Controls(Vertical):
     def _mark_held(self):
         for fid, key in (("ratio", "ratio"), ("jar-rpm", "jar_rpm")):
             self.query_one(f"#label-{fid}", Label).set_class(self.hold == key, "held")
+        self.query_one("#held", Static).update(held_text(self.hold))
 
     def on_input_submitted(self, event: Input.Submitted):
         """Apply the field (μ_s and μ_d together), then leave it."""

@@ -22,11 +22,11 @@ KEYS = (
 
 FIELDS_TEXT = """\
 Fields take effect on Enter; a value outside its range is refused with a message,
-and the simulation keeps running with the old one.
+and the simulation keeps running with the old one. ▶ marks the field being edited.
   Ω          plate speed (rpm)
   K          ω/Ω + 1 (= w/Ω, the jar's absolute spin w over Ω); K < 0: counter-rotation
   ω          jar speed relative to the plate (rpm); entering K or ω shows the other,
-             and the last one entered is held when Ω changes
+             and the last one entered is held when Ω changes ("held:" under them)
   ramp       time (s) a speed change takes (smooth ramp, so the Euler terms stay right)
   μ_s, μ_d   static and dynamic friction (eq 3.7), μ_d ≤ μ_s, applied as a pair: Enter in
              either applies both as typed; or pick a material pair

@@ -103,6 +103,7 @@ TOML_READERS = {
     "preset jar key": (["run", "{P:jar}"], "jar"),
     "preset pair key": (["run", "{P:pair}"], "pair"),
     "kinetics predict FIT": (["kinetics", "predict", "{F}", "{in}/condition.json"], "FIT"),
+    "design PRESET": (["design", "{F}", "--out", "{work}/study"], "preset"),
 }
 CSV_READERS = {
     "calibrate fit --data": (["calibrate", "fit", "--pair", "steel-steel", "--data", "{F}"], "--data"),

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -118,7 +119,8 @@ def settings_of(a):
     if len({o.key for o in objectives}) < len(objectives):
         raise ConfigError("command line", "--objective", ",".join(a.objective), "an objective is repeated")
     floors = dict(parse_floor(t) for t in a.floor)
-    preset = str(Path(a.preset).resolve()) if a.preset.endswith(".toml") else a.preset
+    # absolute, links kept: the loader names a broken link or a loop in its one line
+    preset = os.path.abspath(a.preset) if a.preset.endswith(".toml") else a.preset
     from taimill.cli.common import dt_option
 
     overrides = {k: v for k, v in {"duration": a.duration, "analysis_start": a.analysis_start, "plate_rpm": a.plate_rpm,

@@ -40,7 +40,7 @@ def write_spectra(parent: zarr.Group, sp: Spectra, codecs) -> None:
     array("lower", lower, ("bin",), "J", "lower edge of each bin")
     array("upper", upper, ("bin",), "J", "upper edge of each bin")
     for name, values in (("kind", KINDS), ("class", CLASSES), ("measure", MEASURES)):
-        coord = g.create_array(name, shape=(len(values),), dtype=str, dimension_names=(name,), compressors=None)
+        coord = g.create_array(name, shape=(len(values),), dtype=str, dimension_names=(name,), compressors=codecs)
         coord[:] = np.array(values)  # zarr's variable-length strings: fixed-width ones have no zarr v3 spec yet
 
 

@@ -36,15 +36,14 @@ def cy_steel():
     return simulate("p4-cy-steel", duration=2.0, analysis_start=0.5, ratio=-2.6)
 
 
-def test_kernel_spectra_are_the_rows_binned_to_the_bit_in_both_modes(cy_steel):
+def test_kernel_spectra_are_the_rows_binned_to_the_bit(cy_steel):
+    """(Both launch modes give the same spectra: the 10⁴-ball test below; the parallel
+    mode's launch per phase makes 12 balls over 2 s cost minutes.)"""
     spec, sink = cy_steel
     got = sink.last_spectra
     rows = sink.event_table
     assert got.start == spec.spectra_from == 0.5 and got.count.sum() > 1000
     assert got == from_rows(rows, got.start, got.end, got.stress_un)
-    # the one-mill parallel mode (atomics from many balls at once) gives the same integers
-    _, par = simulate("p4-cy-steel", mode="parallel", duration=2.0, analysis_start=0.5, ratio=-2.6)
-    assert par.last_spectra == got
 
 
 def test_the_integrals_are_the_events_and_their_energies(cy_steel):

@@ -35,6 +35,7 @@ from taimill.model.spectra import Spectra
 from taimill.schema import DERIVED_EVENT_COLUMNS, EVENT_COLUMNS
 
 _initialised = False
+OFFLINE_CACHE_BYTES = 1 << 30  #: Taichi's offline kernel cache may grow to this (init_taichi)
 # balls: beyond this one mill runs in parallel mode. Measured crossover on the 2-core
 # machine (scripts/bench.py): fused 366 vs parallel 673 µs/step at 10 000 balls,
 # 5263 vs 4311 at 100 000.
@@ -305,7 +306,12 @@ def init_taichi(threads: int | None = None):
     clear_stale_cache_lock()
     _memoise_source_positions()
     return_freed_memory()
-    kw = {}
+    # Taichi's offline cache evicts a quarter of its kernels (least recently used) whenever
+    # it exceeds its default 100 MB. taimill's engine shapes (ball counts, batches, contact
+    # models, launch modes) fill ≈ 130 MB, so with the default every run of a new shape
+    # evicted kernels another shape then compiled again (≈ 20 s CPU each): the test suite
+    # took 13 min on a warm cache. 1 GiB keeps them all.
+    kw = {"offline_cache_max_size_of_files": OFFLINE_CACHE_BYTES}
     # Taichi's own warnings are about its compile cache (a lock held by another taimill
     # starting at the same moment, or left by a killed one): the run is unaffected, only
     # its start-up is uncached, and they would break the one-line error contract on

@@ -94,8 +94,9 @@ class Spectra:
             keep &= t < self.end
         kind = np.asarray(rows["kind"])[keep].astype(np.intp)
         cls = np.where(np.asarray(rows["un"], dtype=float)[keep] >= self.stress_un, 0, 1)
+        energies = event_energies(rows)
         for q, name in enumerate(MEASURES):
-            e = event_energies(rows)[name][keep]
+            e = energies[name][keep]
             bins = bin_index(e)
             np.add.at(self.count, (kind, cls, q, bins), 1)
             np.add.at(self.fixed, (kind, cls, q, bins), to_fixed(e, bins))

@@ -60,12 +60,11 @@ def share_with_partner(F: ti.template(), b, i, k, f, tq):
 @ti.func
 def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
     """Contact of balls i and j: (force on i, torque on i, dissipated normal and by
-    friction, whether it is an impact, stored, slot bit of i's event or 0, its pool row
-    or -1). Events and the ledger are booked by the owner, i < j."""
+    friction, whether it is an impact, stored, slot bit of i's event or 0). Events and
+    the ledger are booked by the owner, i < j."""
     f = ti.Vector([0.0, 0.0, 0.0])
     tq = ti.Vector([0.0, 0.0, 0.0])
     diss_n, diss_t, impact, stored, bit = 0.0, 0.0, False, 0.0, 0
-    row = -1
     xi, xj = F.state.x[b, i], F.state.x[b, j]
     ri, rj = F.model.r[b, i], F.model.r[b, j]
     d = xj - xi
@@ -88,7 +87,7 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
         m_eff = mi * mj / (mi + mj)
         inv_mass_t = (F.model.inv_m[b, i] + F.model.inv_m[b, j]) + (ai.norm_sqr() * F.model.inv_i[b, i] + aj.norm_sqr() * F.model.inv_i[b, j])
         owner = S.owns(F, b, i, j)
-        k, is_new = -1, False
+        k, row, is_new = -1, -1, False
         hist_t, e_t, hist_r, e_r = ti.Vector([0.0, 0.0, 0.0]), 0.0, ti.Vector([0.0, 0.0, 0.0]), 0.0
         if ti.static(F.history[0]):  # the owner reads the history before the response (fused mode)
             if owner:
@@ -120,41 +119,7 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
                 if ti.static(F.history[0]):
                     write_history(F, b, row, new_t, new_e_t, new_r, new_e_r)
                 share_with_partner(F, b, i, k, -fc, aj.cross(-fc) - m_roll)
-                if ti.static(F.pair_once):  # both balls' shares, for gather_contacts
-                    F.contacts.row_f[b, row] = fc
-                    F.contacts.row_tq[b, row] = tq
-                    F.contacts.row_tq_partner[b, row] = aj.cross(-fc) - m_roll
-    return f, tq, diss_n, diss_t, impact, stored, bit, row
-
-
-@ti.func
-def gather_contacts(F: ti.template(), b, i):
-    """Pair-once mode (F.pair_once): ball i's ball-ball forces and torques, left in
-    the contacts' pool rows by their owners in this step's force pass, added to its
-    wall forces in list order: the sums ball_forces forms when every ball evaluates its
-    own contacts, to the bit (the pair function is antisymmetric to the bit)."""
-    f, tq = F.state.f[b, i], F.state.tau[b, i]
-    mask = F.spatial.touch_mask[b, i]  # the entries that touch (the test is symmetric to the bit)
-    first = F.spatial.first_owned[b, i]
-    q = 0
-    while mask:
-        if mask & 1:
-            e = -1  # the owner's entry holds the row: only reads reach other balls' rows
-            if q >= first:
-                e = F.spatial.entry_row[b, i, q]
-            else:
-                e = F.spatial.entry_row[b, F.spatial.nbr[b, i, q], F.spatial.nbr_back[b, i, q]]
-            if e >= 0:
-                if q >= first:
-                    f += F.contacts.row_f[b, e]
-                    tq += F.contacts.row_tq[b, e]
-                else:
-                    f += -F.contacts.row_f[b, e]
-                    tq += F.contacts.row_tq_partner[b, e]
-        mask = (mask >> 1) & 0x7FFFFFFF
-        q += 1
-    F.state.f[b, i] = f
-    F.state.tau[b, i] = tq
+    return f, tq, diss_n, diss_t, impact, stored, bit
 
 
 @ti.func
@@ -221,38 +186,21 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
     # per list entry kept the CPU from overlapping the contacts' evaluations.
     touching = ti.Vector([0] * S.NEIGHBOURS, dt=ti.i32)
     n_touching = 0
-    touch_mask = 0
     for q in range(F.spatial.nbr_count[b, i]):
         j = F.spatial.nbr[b, i, q]
         rr = ri + F.model.r[b, j]
-        touch = (F.state.x[b, j] - xi).norm_sqr() < rr * rr
-        if ti.static(F.pair_once):  # only the owner evaluates; it records the contact's row on its list
-            touching[n_touching] = q
-            touch_mask |= ti.cast(touch, ti.i32) << q
-            if q >= F.spatial.first_owned[b, i]:
-                F.spatial.entry_row[b, i, q] = -1
-                n_touching += ti.cast(touch, ti.i32)
-        else:
-            touching[n_touching] = j
-            n_touching += ti.cast(touch, ti.i32)
-    for p in range(n_touching):
-        q, j = -1, touching[p]
-        if ti.static(F.pair_once):
-            q = touching[p]
-            j = F.spatial.nbr[b, i, q]
-        fj, tj, dnj, dtj, impact, ej, bit, row = ball_pair(F, b, i, j, was_open, seen, t, w, dt)
-        if ti.static(F.pair_once):
-            F.spatial.entry_row[b, i, q] = row
-        else:
-            f += fj
-            tq += tj
+        touching[n_touching] = j
+        n_touching += ti.cast((F.state.x[b, j] - xi).norm_sqr() < rr * rr, ti.i32)
+    for q in range(n_touching):
+        j = touching[q]
+        fj, tj, dnj, dtj, impact, ej, bit = ball_pair(F, b, i, j, was_open, seen, t, w, dt)
+        f += fj
+        tq += tj
         diss += dnj + dtj
         if dnj != 0.0 or dtj != 0.0:
             book_mechanism(F, b, i, 0, impact, dnj, dtj)
         stored += ej
         seen |= bit
-    if ti.static(F.pair_once):
-        F.spatial.touch_mask[b, i] = touch_mask
     close_events(F, b, i, was_open, seen, t)
     F.state.f[b, i] = f
     F.state.tau[b, i] = tq

@@ -16,13 +16,12 @@ import taichi as ti
 
 from taimill.physics import state as S
 from taimill.physics.neighbours import rebuild_parallel, rebuild_serial
-from taimill.physics.contacts import ball_forces, gather_contacts
+from taimill.physics.contacts import ball_forces
 from taimill.physics.pool import pool_settle, release_rows
 from taimill.physics.frame import drive_turning, psi_at, steady, ramp_at, ramp_turn, wall_velocity_ground
 from taimill.physics.integrator import frame_acceleration, integrate
 
 PAD = 512
-PAIR_ONCE = True  # parallel mode evaluates each ball-ball contact once (Fields.pair_once)
 PSI_RESYNC = 4096  # steps between exact evaluations of cos ψ, sin ψ (psi_trig)
 
 
@@ -202,8 +201,6 @@ def integrate_parallel(F: ti.template()):
     pool_settle(F, 0)
     a_frame = frame_acceleration(F, 0, dr)
     for i in range(F.model.n_balls[0]):
-        if ti.static(F.pair_once):
-            gather_contacts(F, 0, i)
         integrate(F, 0, i, dr, dt, a_frame)
         release_rows(F, 0, i)  # after the force pass, the only one that takes rows
     F.state.step[0] += 1
@@ -261,7 +258,7 @@ class Engine:
     LARGE_EVENT_BYTES = 32 << 20  # events buffered in parallel mode, half of them the per-step margin
 
     def __init__(self, batch, balls, *, mode="fused", use_grid=True, grid_cells=1, frame_capacity=256, pool=None,
-                 reorder=None, models=None, pair_once=None):
+                 reorder=None, models=None):
         if mode == "parallel" and batch != 1:
             raise ValueError("parallel mode runs one mill")
         reorder = mode == "parallel" if reorder is None else reorder
@@ -277,9 +274,8 @@ class Engine:
             events = max(self.EVENT_ROWS, min(events, self.LARGE_EVENT_BYTES // (8 * S.NCOL)))
             self.margin = min(self.margin, events // 2)
             frames = int(max(1, min(frame_capacity, self.LARGE_FRAME_BYTES // (72 * n))))
-        pair_once = mode == "parallel" and PAIR_ONCE if pair_once is None else pair_once
         self.F = S.Fields(batch, n, events, frames, grid_cells, pool, share_pairs=mode == "fused", reorder=reorder,
-                          models=models, pair_once=pair_once)
+                          models=models)
         self._spare: dict[int, list[np.ndarray]] = {}  # drain's frame arrays per mill (_frame_arrays)
 
     @property

@@ -89,30 +89,9 @@ def build_lists_parallel(F: ti.template()):
     F.spatial.rebuild[0] = 0
 
 
-@ti.kernel
-def link_lists_parallel(F: ti.template()):
-    """For each list entry (i, q) with neighbour j: the position of i on j's list
-    (lists are symmetric: the skin test reads the same numbers from both sides); no
-    contact recorded yet (engine.gather_contacts)."""
-    for i in range(F.model.n_balls[0]):
-        first = F.spatial.nbr_count[0, i]
-        for q in range(F.spatial.nbr_count[0, i]):
-            j = F.spatial.nbr[0, i, q]
-            if S.owns(F, 0, i, j) and q < first:
-                first = q
-            p = 0
-            while p < F.spatial.nbr_count[0, j] - 1 and F.spatial.nbr[0, j, p] != i:
-                p += 1
-            F.spatial.nbr_back[0, i, q] = p
-            F.spatial.entry_row[0, i, q] = -1
-        F.spatial.first_owned[0, i] = first
-
-
 def rebuild_parallel(F):
     """The grid, the ball rows put in its order (reorder.py, if F.reorder), the lists."""
     grid.build_parallel(F)
     if F.reorder:
         reorder.permute(F)
     build_lists_parallel(F)
-    if F.pair_once:
-        link_lists_parallel(F)

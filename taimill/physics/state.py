@@ -117,8 +117,7 @@ def default_models() -> tuple:
 @ti.data_oriented
 class Fields:
     def __init__(self, batch: int, balls: int, event_capacity: int, frame_capacity: int, grid_cells: int,
-                 pool: int | None = None, share_pairs: bool = False, reorder: bool = False, models=None,
-                 pair_once: bool = False):
+                 pool: int | None = None, share_pairs: bool = False, reorder: bool = False, models=None):
         B, N = batch, balls
         # the ContactModels the kernels are compiled for, per contact type (ball-ball,
         # ball-wall): compile-time constants of every kernel that takes these fields
@@ -138,12 +137,6 @@ class Fields:
         # every neighbour-list build (reorder.py); user_of maps a row to the ball's own
         # index, which every output and the contact ownership use
         self.reorder = reorder
-        # parallel mode: each ball-ball contact is evaluated once, by its owner, which
-        # leaves both balls' shares in the contact's pool row; the integration pass adds
-        # them to each ball in its list order (engine.gather_contacts)
-        if pair_once and (share_pairs or any(self.history)):
-            raise ValueError("pair_once is for parallel mode without contact history")
-        self.pair_once = pair_once
         self.B, self.N, self.event_capacity, self.frame_capacity = B, N, event_capacity, frame_capacity
         self.pool_capacity = P
         # home rows per ball; at least a third of the pool stays shared, for the balls that
@@ -237,10 +230,6 @@ class Fields:
         shared = (B, N, SLOTS) if share_pairs else (1, 1, 1)
         contacts.pair_f = ti.field(vec3, shared)  #: N, force of this step on the partner of slot k
         contacts.pair_tq = ti.field(vec3, shared)  #: N m, torque of this step on the partner of slot k
-        once = (B, P) if pair_once else (1, 1)
-        contacts.row_f = ti.field(vec3, once)  #: N, this step's force on the owner of pool row e
-        contacts.row_tq = ti.field(vec3, once)  #: N m, this step's torque on the owner of pool row e
-        contacts.row_tq_partner = ti.field(vec3, once)  #: N m, this step's torque on its partner
 
         # ---- spatial hash [B, cells] and [B, N]
         spatial.cell_count = ti.field(i32, (B, grid_cells))
@@ -253,12 +242,6 @@ class Fields:
         spatial.x_ref = ti.field(vec3, (B, N))  #: positions at the last build, m (scratch of reorder.py before it)
         spatial.nbr_count = ti.field(i32, (B, N))
         spatial.nbr = ti.field(i32, (B, N, NEIGHBOURS))  #: neighbour rows (scratch of reorder.py before a build)
-        entries = (B, N, NEIGHBOURS) if pair_once else (1, 1, 1)
-        spatial.nbr_back = ti.field(i32, entries)  #: position of ball i on the list of its q-th neighbour
-        spatial.entry_row = ti.field(i32, entries)  #: pool row of the contact of list entry q this step, -1: none
-        per_ball = (B, N) if pair_once else (1, 1)
-        spatial.first_owned = ti.field(i32, per_ball)  #: entries q ≥ this are ball i's to evaluate (lists are in own-index order)
-        spatial.touch_mask = ti.field(i32, per_ball)  #: bit q: list entry q touches in this step
 
         # ---- output buffers, drained by the launcher after every launch
         out.events = ti.Vector.field(NCOL, f64, (B, event_capacity))

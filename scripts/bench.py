@@ -49,19 +49,29 @@ tick-sampled: ±0.2 for bursty or short measurements). With others near 1 on a
    spawned process per core, no store. Timed from the call to the last result: worker start-up, ti.init
    and compilation included (what a user waits for); CPU time includes the workers.
 
-5. Dense beds (issue 16): N = 10⁴, 10⁵, 10⁶ (10⁴ with --quick) steel balls (r = 6 mm)
-   close-packed at rest in a cylinder (gaps of 1 nm: every contact loads at once),
-   Hertz e = 0.516 (hertz-mindlin), Coulomb μ = 0.8, dt = 1 µs, plus a rotating-drum
-   variant (the jar turning about its own axis at 30 rpm); taimill on one thread
-   (the per-core cost; CPU time of the process) and, when `liggghts` is on PATH, LIGGGHTS-PUBLIC from the same
-   start with the deck `taimill export liggghts` writes (no dumps, no mesh movers for
-   the static bed), its loop time from its log (CPU = loop time × the process' CPU
-   share; it runs on one core). Also the whole `taimill run` process of the 10⁵ case
-   (set-up, 11 steps, store, summary; all threads): wall and CPU time, peak RSS, and its
-   set-up alone: interpreter start to the first step done (issue 16: ≤ 10 s), wall and
-   CPU seconds; twice ("CLI run", then "CLI again"), since the first run of a size on a
-   machine compiles its kernels (≈ 7 s and ≈ 100 MB of peak RSS at 10⁵ balls) and the
-   second finds them in Taichi's cache, as every later run does.
+5. Dense beds (issue 16): taimill and LIGGGHTS-PUBLIC 3.8 side by side, end to end through
+   their command lines, one core each: steel balls (r = 6 mm, Hertz e = 0.516 as
+   hertz-mindlin, Coulomb μ = 0.8, dt = 1 µs) on a lattice of pitch 2r + 1 nm in a
+   cylinder (every contact closing at once), the plate at rest (10⁻⁶ rpm: the command
+   line refuses 0). Cases: simple cubic of 2·10⁴ and 10⁵ balls and face-centred cubic of
+   2·10⁴ (steps 1000 → 3000); the hexagonal close-packed bed of 10⁵ once settled (3000 →
+   5000); that bed in a drum turning at 30 rpm about its own axis (1000 → 3000). Each
+   code runs N1 steps and N2 steps in child processes (up to 2·10⁴ balls twice each,
+   the least time counting), and a figure per ball-step is the difference / ((N2 − N1) n):
+   start-up, imports, Taichi's kernels from its cache, reading the start and writing the
+   store cancel; CPU time and peak RSS are each child's own (os.wait4). taimill: `python -m
+   taimill run` after an untimed warm-up run (compiles what the cache lacks), with the
+   events as statistics (`events = "spectra"`, the acceptance figure) and as rows, and on
+   2 threads for the simple cubic 10⁵ (parallel efficiency = wall 1 thread / (2 × wall 2
+   threads)). LIGGGHTS: `liggghts -in` on the deck `taimill export liggghts` writes, no
+   dumps, the box around the jar alone; static cases without the mesh movers and, the
+   reference, with LIGGGHTS' primitive walls (zcylinder, zplanes) instead of the STL
+   mesh, shown beside the mesh at 2·10⁴ balls; the drum keeps its moving mesh. Ratio =
+   taimill / LIGGGHTS CPU per ball-step; targets sc 10⁵ ≤ 0.8, fcc 2·10⁴ ≤ 1.0, settled
+   bed ≤ 1.0, drum ≤ 0.8; peak RSS at 10⁵ ≤ 300 MB + 1 kB per ball. Last, one `taimill
+   run` of a 10⁶-ball bed, 11 steps, one thread: wall, CPU, peak RSS (--skip-million
+   skips it). --quick: simple and face-centred cubic of 2000 balls, 100 → 1100 steps (the
+   machinery only: a run's start-up varies by more than those steps cost).
 
 6. Every small-mill preset (issue 19: each ≥ 3x real time on one core): run() into a NullSink on
    one thread, 24 s simulated (3 s with --quick), as simulated seconds per CPU second
@@ -78,7 +88,7 @@ are the per-core figures to quote; wall figures then measure the machine's load.
    from the one in DIR, interleaved rounds in one run, best of each: a change's
    before/after on the same machine at the same time.
 
-    scripts/bench.py [--quick] [--only reference|scaling|recording|sweep|dense|presets|trajectory] [--liggghts-all] [--json FILE]
+    scripts/bench.py [--quick] [--only reference|scaling|recording|sweep|dense|presets|trajectory] [--skip-million] [--json FILE]
     scripts/bench.py --ab DIR
 """
 
@@ -780,34 +790,49 @@ def sweep_section(quick: bool) -> dict:
 
 
 # ---- 5. dense beds, side by side with LIGGGHTS (issue 16)
-DENSE_N = (10_000, 100_000, 1_000_000)
-DENSE_STEPS = {10_000: 1000, 100_000: 1000, 1_000_000: 100}  # timed steps per case
+DENSE_STEPS = {10_000: 1000, 100_000: 1000, 1_000_000: 100}  # steps per case of dense_case's preset (section 8)
 # the bed of 10⁵ balls is timed a second time, after this many more steps: a bed that
 # has settled, holding every contact it will hold (its first steps are the bed closing
 # its gaps; contacts open for long had scattered their data over memory and cost 1.8x)
 DENSE_SETTLE = {100_000: 3000}
 DENSE_RADIUS_MM = 6.0  # steel balls of the thesis
 DENSE_GAP = 1e-9  # m between neighbours of the close-packed bed: a bed at rest, every contact closing at once
-LIGGGHTS_MAX_N = 100_000  # 10⁶ balls in LIGGGHTS: ≈ 100 s per 1000 steps, skipped unless --liggghts-all
 DRUM_RPM = 30.0  # the drum variant: the jar turns about its own axis at this speed
+DENSE_DT = 1e-6  # s, every dense preset's time step
+# packed volume per ball in units of the pitch³: simple cubic; face-centred cubic and
+# hexagonal close packing (both 12 neighbours, 74 % of space at gap 0)
+LATTICE_VOLUME = {"sc": 1.0, "fcc": 1 / math.sqrt(2), "hcp": 1 / math.sqrt(2)}
 
 
-def dense_case(directory: Path, n: int, drum: bool) -> Path:
-    """A preset of n steel balls (r = 6 mm) in a close-packed bed filling the lower part
-    of a cylinder of height 1.5 R (at most 1 m), start positions in start.npz: Hertz with constant
-    restitution 0.516 (hertz-mindlin), Coulomb μ = 0.8, dt = 1 µs. Static: the drive at
-    10⁻⁶ rpm (the worker sets it to exactly 0); drum: the jar turns at DRUM_RPM about
-    its own axis after a 1 ms start-up."""
+def dense_case(directory: Path, n: int, drum: bool, lattice: str = "hcp") -> Path:
+    """A preset of n steel balls (r = 6 mm) in a bed filling the lower part of a cylinder
+    of height 1.5 R (at most 1 m), start positions in start.npz: Hertz with constant
+    restitution 0.516 (hertz-mindlin), Coulomb μ = 0.8, dt = 1 µs. The bed: `lattice` "hcp"
+    (hexagonal close packing, bed_placement), "sc" (simple cubic) or "fcc" (face-centred
+    cubic), neighbours 2r + DENSE_GAP apart, the lowest n sites. Static: the drive at
+    10⁻⁶ rpm (work_dense sets it to exactly 0; the command line refuses 0); drum: the jar
+    turns at DRUM_RPM about its own axis after a 1 ms start-up."""
     import numpy as np
 
     from taimill.model.geometry import build_profile
     from taimill.model.placement import bed_placement
 
     r = DENSE_RADIUS_MM * 1e-3
-    R = (n * (2 * r) ** 3 / math.sqrt(2) / math.pi) ** (1 / 3) + 2 * r  # the bed about R high
-    H = min(1.5 * R, 0.999)  # jar files allow up to 1 m
-    x = bed_placement(n, r, build_profile((("circle", {"radius": R}),), 0.0), H, gap=DENSE_GAP)
-    case = directory / f"{'drum' if drum else 'bed'}{n}"
+    pitch = 2 * r + DENSE_GAP
+    # a bed about R high (R grown until n sites fit: a cubic lattice loses more at the wall)
+    R = (n * pitch**3 * LATTICE_VOLUME[lattice] / math.pi) ** (1 / 3) + 2 * r
+    while True:
+        H = min(1.5 * R, 0.999)  # jar files allow up to 1 m
+        if lattice == "hcp":
+            x = bed_placement(n, r, build_profile((("circle", {"radius": R}),), 0.0), H, gap=DENSE_GAP)
+            break
+        x = lattice_sites(lattice, pitch, R - r - DENSE_GAP, r + DENSE_GAP, H - r - DENSE_GAP)
+        if len(x) >= n:
+            x = x[:n]
+            break
+        R *= 1.05
+    name = {"hcp": "bed", "sc": "sc", "fcc": "fcc"}[lattice]
+    case = directory / f"{'drum' if drum else name}{n}"
     case.mkdir(parents=True, exist_ok=True)
     (case / "jar.toml").write_text(f'description = "bench.py: cylinder for a bed of {n} balls"\n'
                                    f'height_mm = {1e3 * H!r}\nwall_material = "aisi-304"\n\n'
@@ -815,13 +840,33 @@ def dense_case(directory: Path, n: int, drum: bool) -> Path:
     np.savez(case / "start.npz", positions=x)
     drive = f"plate_rpm = 1e-6\njar_rpm = {DRUM_RPM}\nramp_time = 0.001\n" if drum else "plate_rpm = 1e-6\nratio = 1\n"
     drive += "plate_radius_mm = 2000\n"  # the plate all but rests (Ω = 1e-6 rpm): R_p need only lie outside the jar
-    duration = (2 * DENSE_STEPS[n] + DENSE_SETTLE.get(n, 0)) * 1e-6 + 2e-6
+    duration = (2 * DENSE_STEPS.get(n, 1000) + DENSE_SETTLE.get(n, 0)) * DENSE_DT + 2 * DENSE_DT
     (case / "bed.toml").write_text(
         'jar = "jar.toml"\npair = "steel-steel"\nlaw = "hertz-mindlin"\n' + drive
-        + f'duration = {duration!r}\ndt = 1e-6\nseed = 1\ninitial_positions = "start.npz"\n'
+        + f'duration = {duration!r}\ndt = {DENSE_DT!r}\nseed = 1\ninitial_positions = "start.npz"\n'
         f'\n[friction]\nmu_s = 0.8\nmu_d = 0.8\n\n[balls]\ncount = {n}\nmaterial = "steel-c1020"\n'
         f'radius_mm = {DENSE_RADIUS_MM}\n\n[outputs]\ntrajectory_rate = {1 / duration!r}\n')  # one frame interval: frames at both ends
     return case / "bed.toml"
+
+
+def lattice_sites(lattice: str, pitch: float, reach: float, z_lo: float, z_hi: float):
+    """Sites of a simple cubic ("sc") or face-centred cubic ("fcc") lattice whose nearest
+    neighbours are `pitch` apart, centres within `reach` of the z axis and z_lo ≤ z ≤ z_hi,
+    lowest layers first (sorted by z, then y, then x, as bed_placement's)."""
+    import numpy as np
+
+    if lattice == "sc":
+        a, basis = pitch, np.zeros((1, 3))
+    else:  # cubic cell a = pitch √2, 4 sites: the face centres are pitch from the corners
+        a = pitch * math.sqrt(2)
+        basis = np.array([[0, 0, 0], [0.5, 0.5, 0], [0.5, 0, 0.5], [0, 0.5, 0.5]]) * a
+    m = int(reach / a) + 1
+    i, j, k = np.meshgrid(np.arange(-m, m + 1), np.arange(-m, m + 1), np.arange(int((z_hi - z_lo) / a) + 1),
+                          indexing="ij")
+    cells = np.column_stack([i.ravel() * a, j.ravel() * a, z_lo + k.ravel() * a])
+    pts = (cells[:, None, :] + basis[None, :, :]).reshape(-1, 3)
+    pts = pts[(np.hypot(pts[:, 0], pts[:, 1]) <= reach) & (pts[:, 2] <= z_hi + 1e-12)]
+    return pts[np.lexsort((pts[:, 0], pts[:, 1], pts[:, 2]))]
 
 
 def vm_hwm_mib() -> float:
@@ -858,175 +903,291 @@ def work_dense(task: dict) -> dict:
     return out | dict(rss_mib=vm_hwm_mib())
 
 
-def work_liggghts(task: dict) -> dict:
-    """LIGGGHTS on the same case from the same start: the deck taimill exports (static:
-    without the mesh movers), `task["steps"]` steps, no dumps; its loop time from the
-    log, CPU seconds and peak memory of its process; with task["settle"], that many
-    steps more and task["steps"] again (result "settled")."""
-    import resource
 
-    from taimill.bridge.liggghts import export_case
-    from taimill.model.preset import load_preset
 
-    case = Path(task["dir"])
-    export_case(load_preset(task["preset"]), case)
-    keep = []
-    for line in (case / "in.taimill").read_text().splitlines():
-        if line.startswith(("dump", "fix dtcheck")) or (not task["drum"] and line.startswith(("fix plate", "fix spin"))):
-            continue
-        if line.startswith("run "):
-            keep += [f"run {task['steps']}"] + [f"run {task['settle']}", f"run {task['steps']}"] * bool(task["settle"])
-        else:
-            keep.append(line)
-    (case / "in.taimill").write_text("\n".join(keep) + "\n")
-    t0 = time.perf_counter()
-    proc = subprocess.run(["liggghts", "-in", "in.taimill", "-log", "log.liggghts"], cwd=case, capture_output=True,
-                          text=True, timeout=task["timeout"])
-    wall = time.perf_counter() - t0
-    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
-    log = (case / "log.liggghts").read_text() if (case / "log.liggghts").exists() else proc.stdout
-    loop = [ln for ln in log.splitlines() if ln.startswith("Loop time of")]
-    if proc.returncode or not loop:
-        raise RuntimeError(f"liggghts failed ({proc.returncode}): {(proc.stderr or proc.stdout)[-300:]}")
-    words = [ln.split() for ln in loop]  # Loop time of T on P procs for S steps with N atoms
-    cpu = usage.ru_utime + usage.ru_stime
-    loop_wall, steps, atoms = float(words[0][3]), int(words[0][8]), int(words[0][11])
-    out = dict(threads=int(words[0][5]), wall=wall, loop_wall=loop_wall, steps=steps, atoms=atoms, cpu=cpu,
-               loop_cpu=loop_wall * min(1.0, cpu / wall), setup=wall - sum(float(w[3]) for w in words),
-               rss_mib=usage.ru_maxrss / 1024)
-    if task["settle"]:
-        late = float(words[-1][3])
-        out["settled"] = dict(loop_wall=late, steps=int(words[-1][8]), loop_cpu=late * min(1.0, cpu / wall))
+# The dense section times both codes end to end through their command lines: every
+# measurement is a child process run N1 steps and one run N2 steps, and a figure per
+# ball-step is (N2-run − N1-run) / ((N2 − N1) n): the set-up (interpreter start, imports,
+# kernels from Taichi's cache, reading the start, the store; LIGGGHTS' input and first
+# neighbour lists) cancels. CPU time and peak RSS are the child's own (os.wait4).
+DENSE_CASES = (  # name, balls, lattice, drum, (N1, N2), target (taimill spectra / LIGGGHTS), LIGGGHTS walls
+    dict(case="sc 20000", n=20_000, lattice="sc", drum=False, steps=(1000, 3000), target=None,
+         walls=("primitive", "mesh")),
+    dict(case="sc 100000", n=100_000, lattice="sc", drum=False, steps=(1000, 3000), target=0.8,
+         walls=("primitive",), threads2=True, rss_check=True),
+    dict(case="fcc 20000", n=20_000, lattice="fcc", drum=False, steps=(1000, 3000), target=1.0,
+         walls=("primitive", "mesh")),
+    dict(case="bed 100000 settled", n=100_000, lattice="hcp", drum=False, steps=(3000, 5000), target=1.0,
+         walls=("primitive",), rss_check=True),
+    dict(case="drum 100000", n=100_000, lattice="hcp", drum=True, steps=(1000, 3000), target=0.8, walls=("mesh",),
+         rss_check=True),
+)
+QUICK_DENSE_CASES = (  # --quick: the machinery in about a minute (1000 steps: 200 were below the noise of a run)
+    dict(case="sc 2000", n=2000, lattice="sc", drum=False, steps=(100, 1100), target=None,
+         walls=("primitive", "mesh"), threads2=True),
+    dict(case="fcc 2000", n=2000, lattice="fcc", drum=False, steps=(100, 1100), target=None,
+         walls=("primitive", "mesh")),
+)
+DENSE_MILLION = 1_000_000  # balls of the taimill-only run that proves the size runs (--skip-million skips it)
+MILLION_STEPS = 10  # its --duration in steps, one frame interval (taimill takes 11: frames at both ends)
+DENSE_RSS_BASE, DENSE_RSS_PER_BALL = 300e6, 1e3  # bytes: peak RSS at 10⁵ balls ≤ 300 MB + 1 kB per ball
+DENSE_TIMEOUT = 1800  # s per child process
+DENSE_EVENTS = ("spectra", "rows")  # taimill's event outputs; the target applies to the spectra
+# runs of each length per measurement up to this many balls, the least time of each
+# counting: a run's start-up varies by ± 0.3 s, 7 % of what 2000 steps of 20 000 balls cost
+DENSE_REPEATS, DENSE_REPEAT_UP_TO = 2, 20_000
+
+
+def run_child(cmd: list[str], cwd: Path, timeout: float, env: dict | None = None, log: Path | None = None) -> dict:
+    """Run cmd to its end: wall seconds, CPU seconds (user + system, all its threads) and
+    peak RSS of that child alone (os.wait4), its stdout. Output goes to files (no pipe to
+    drain: the child is reaped by os.wait4, not by Popen). RuntimeError on failure."""
+    log = log or Path(tempfile.mkstemp(prefix="bench-child-", suffix=".log")[1])
+    with open(log, "w") as out, open(log.with_suffix(".err"), "w") as err:
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=out, stderr=err, stdin=subprocess.DEVNULL)
+        while True:
+            pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
+            if pid:
+                break
+            if time.perf_counter() - t0 > timeout:
+                proc.kill()
+                os.wait4(proc.pid, 0)
+                proc.returncode = -9
+                raise RuntimeError(f"{Path(cmd[0]).name} timed out after {timeout:g} s")
+            time.sleep(0.02)
+        wall = time.perf_counter() - t0
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    stdout, stderr = log.read_text(), log.with_suffix(".err").read_text()
+    if proc.returncode:
+        tail = (stderr.strip() or stdout.strip()).splitlines()
+        raise RuntimeError(f"{Path(cmd[0]).name} exit {proc.returncode}: {tail[-1] if tail else ''}")
+    return dict(wall=wall, cpu=usage.ru_utime + usage.ru_stime, rss_mib=usage.ru_maxrss / 1024, stdout=stdout)
+
+
+def per_ball_step(runs: list[dict], n: int) -> dict:
+    """The figures of runs of N1 and of N2 steps (one or more of each: the least wall and
+    the least CPU time of each length count): ns per ball-step from their difference, the
+    set-up (the N1 run's wall less its steps' share), the largest peak RSS."""
+    first, last = min(r["steps"] for r in runs), max(r["steps"] for r in runs)
+    best = {k: [min(r[k] for r in runs if r["steps"] == s) for s in (first, last)] for k in ("wall", "cpu")}
+    (w1, w2), (c1, c2) = best["wall"], best["cpu"]
+    ns_wall = (w2 - w1) / ((last - first) * n) * 1e9
+    return dict(steps=[first, last], wall=[w1, w2], cpu=[c1, c2], runs=len(runs) // 2,
+                ns_cpu=(c2 - c1) / ((last - first) * n) * 1e9, ns_wall=ns_wall,
+                setup=w1 - ns_wall * first * n * 1e-9, rss_mib=max(r["rss_mib"] for r in runs))
+
+
+def taimill_cli(preset: Path, tmp: Path, n: int, steps: tuple, events: str, threads: int, repeats: int = 1,
+                warm: int | None = None) -> dict:
+    """`python -m taimill run PRESET --duration D --out X.zarr --json` with
+    TI_CPU_MAX_NUM_THREADS = threads: an untimed warm-up run of `warm` steps, by default
+    one frame interval (compiles what Taichi's cache lacks: every kernel runs in the
+    first step; a drum's run must outlast its start-up ramp, so its warm-up is N1), then
+    `repeats` runs of N1 steps and of N2 steps. Frames every gcd(N1, N2) steps; the
+    store holds the events as rows or as spectra."""
+    import shutil
+
+    every = math.gcd(*steps)
+    cli = preset.with_name(f"cli-{events}.toml")  # beside the preset: its jar and start are relative paths
+    cli.write_text(preset.read_text().split("[outputs]")[0]
+                   + f'[outputs]\ntrajectory_rate = {float(f"{1 / (every * DENSE_DT):.9g}")!r}\nevents = "{events}"\n')
+    env = os.environ | {"PYTHONPATH": str(ROOT), "TI_CPU_MAX_NUM_THREADS": str(threads)}
+    runs = []
+    for k, n_steps in enumerate((warm or every, *[s for s in steps for _ in range(repeats)])):
+        name = f"{preset.parent.name}-{events}-{threads}-{k}"
+        # a duration of whole frame intervals: from_preset rounds duration / (every dt), + ¼ step for the rounding
+        cmd = [sys.executable, "-m", "taimill", "run", str(cli), "--duration", repr((n_steps + 0.25) * DENSE_DT),
+               "--out", str(tmp / f"{name}.zarr"), "--json", "--overwrite"]
+        try:
+            r = run_child(cmd, ROOT, DENSE_TIMEOUT, env, tmp / f"{name}.log")
+        finally:
+            shutil.rmtree(tmp / f"{name}.zarr", ignore_errors=True)
+        r["steps"] = json.loads(r.pop("stdout"))["steps"]
+        if r["steps"] != n_steps + 1:  # taimill takes frames at both ends: N steps after the first
+            raise RuntimeError(f"taimill ran {r['steps']} steps, expected {n_steps + 1}")
+        runs.append(r)
+    out = per_ball_step(runs[1:], n)
+    out["warm_up"] = {k: runs[0][k] for k in ("steps", "wall", "cpu", "rss_mib")}
+    out["rss_mib"] = max(out["rss_mib"], runs[0]["rss_mib"])
     return out
 
 
-# `python -m taimill` with the end of its first step marked: the first launch advances
-# one step alone (in either launch mode the same steps as one launch), then its
-# (wall clock, CPU seconds of the process) go to stderr behind SETUP_MARKER.
-SETUP_MARKER = "BENCH-SETUP "
-CLI_LAUNCHER = f"""
-import json, sys, time
-from taimill.physics.engine import Engine
-advance = Engine.advance
-def first(self, n_steps):
-    Engine.advance = advance
-    advance(self, 1)
-    print({SETUP_MARKER!r} + json.dumps([time.time(), time.process_time()]), file=sys.stderr, flush=True)
-    if n_steps > 1:
-        advance(self, n_steps - 1)
-Engine.advance = first
-sys.argv[0] = "taimill"
-from taimill.cli import main
-sys.exit(main())
-"""
+def liggghts_deck(preset: Path, case: Path, walls: str, drum: bool) -> list[str]:
+    """The deck `taimill export liggghts` writes for the preset, without its dumps and
+    time-step check, the movers dropped for a static jar; the box around the jar alone
+    (the export's spans the jar's path around the plate axis, R_p = 2 m: tens of
+    millions of empty neighbour bins). walls "primitive": the STL mesh replaced by
+    LIGGGHTS' own zcylinder and two zplanes (floor and lid), same contact models."""
+    from taimill.bridge.liggghts import export_case
+    from taimill.model.preset import load_preset
+
+    p = load_preset(preset)
+    export_case(p, case)
+    R, H, reach = p.jar.radius, p.jar.height, p.jar.radius + 4 * p.balls.radius
+    keep = []
+    for line in (case / "in.taimill").read_text().splitlines():
+        if line.startswith(("dump", "fix dtcheck", "run ")) or not drum and line.startswith(("fix plate", "fix spin")):
+            continue
+        words = line.split()
+        if line.startswith("fix jar all mesh/surface"):
+            xc = float(words[words.index("move") + 1])  # the jar's axis: the mesh moved by R_p along x
+            if abs(xc - p.plate_radius) > 1e-12:
+                raise RuntimeError(f"the deck moves the jar to x = {xc}, not R_p = {p.plate_radius}")
+            if walls == "primitive":
+                continue
+        if line.startswith("fix walls all wall/gran") and walls == "primitive":
+            at = words.index("mesh")  # fix walls all wall/gran MODELS mesh n_meshes 1 meshes jar SETTINGS
+            models, settings = " ".join(words[4:at]), " ".join(words[at + 5:])
+            keep += [f"fix cyl all wall/gran {models} primitive type 2 zcylinder {R!r} {xc!r} 0. {settings}",
+                     f"fix floor all wall/gran {models} primitive type 2 zplane 0. {settings}",
+                     f"fix lid all wall/gran {models} primitive type 2 zplane {H!r} {settings}"]
+            continue
+        keep.append(line)
+    data = (case / "start.data").read_text().splitlines()
+    for i, line in enumerate(data):
+        if line.endswith("xlo xhi"):
+            data[i] = f"{p.plate_radius - reach!r} {p.plate_radius + reach!r} xlo xhi"
+        elif line.endswith("ylo yhi"):
+            data[i] = f"{-reach!r} {reach!r} ylo yhi"
+    (case / "start.data").write_text("\n".join(data) + "\n")
+    return keep
 
 
-def work_cli(task: dict) -> dict:
-    """The whole `taimill run PRESET --out RUN.zarr --json` process: wall seconds, CPU
-    seconds and peak resident memory (what a user waits for and needs), and its set-up:
-    from the spawn (interpreter start) to the first step done — imports, preset and
-    positions, summary and store, Taichi's fields, kernels, the first neighbour lists."""
-    import resource
-
-    preset = Path(task["preset"])  # frames every 10 steps of 1 µs: a run of one frame interval is 11 steps
-    cli = preset.with_name("cli.toml")
-    cli.write_text(preset.read_text().split("[outputs]")[0] + "[outputs]\ntrajectory_rate = 100000\n")
-    t0, spawned = time.perf_counter(), time.time()
-    proc = subprocess.run([sys.executable, "-c", CLI_LAUNCHER, "run", str(cli), "--duration", "1e-5", "--out",
-                           task["out"], "--json"], capture_output=True, text=True, timeout=task["timeout"], cwd=ROOT)
-    wall = time.perf_counter() - t0
-    if proc.returncode:
-        raise RuntimeError(proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else "taimill run failed")
-    summary = json.loads(proc.stdout)
-    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
-    mark = [json.loads(ln[len(SETUP_MARKER):]) for ln in proc.stderr.splitlines() if ln.startswith(SETUP_MARKER)]
-    setup, setup_cpu = (mark[0][0] - spawned, mark[0][1]) if mark else (math.nan, math.nan)
-    return dict(wall=wall, cpu=usage.ru_utime + usage.ru_stime, setup=setup, setup_cpu=setup_cpu,
-                run_wall=summary["wall_seconds"], steps=summary["steps"], rss_mib=usage.ru_maxrss / 1024)
+def liggghts_cli(preset: Path, tmp: Path, n: int, steps: tuple, walls: str, drum: bool, repeats: int = 1) -> dict:
+    """`liggghts -in DECK -log LOG` on one core, `repeats` runs of N1 steps and of N2
+    steps (liggghts_deck); each log must show n atoms at its end (the deck stops on a
+    lost atom). loop_ns_wall: the same difference of LIGGGHTS' own loop times."""
+    case = tmp / f"lig-{preset.parent.name}-{walls}"
+    deck = liggghts_deck(preset, case, walls, drum)
+    runs = []
+    for k, n_steps in enumerate(s for s in steps for _ in range(repeats)):
+        (case / f"in.{n_steps}").write_text("\n".join(deck + [f"run {n_steps}", ""]))
+        r = run_child(["liggghts", "-in", f"in.{n_steps}", "-log", f"log.{k}"], case, DENSE_TIMEOUT,
+                      log=case / f"out.{k}")
+        loop = [ln.split() for ln in (case / f"log.{k}").read_text().splitlines()
+                if ln.startswith("Loop time of")]  # Loop time of T on P procs for S steps with N atoms
+        if not loop or int(loop[-1][8]) != n_steps or int(loop[-1][11]) != n:
+            raise RuntimeError(f"LIGGGHTS log.{k}: {' '.join(loop[-1]) if loop else 'no loop line'}"
+                               f" (expected {n_steps} steps with {n} atoms)")
+        runs.append(dict(r, steps=n_steps, loop_wall=float(loop[-1][3]), procs=int(loop[-1][5])))
+    loop = [min(r["loop_wall"] for r in runs if r["steps"] == s) for s in steps]
+    return per_ball_step(runs, n) | dict(loop_ns_wall=(loop[1] - loop[0]) / ((steps[1] - steps[0]) * n) * 1e9,
+                                         procs=runs[0]["procs"])
 
 
-def dense_section(quick: bool, liggghts_all: bool) -> list[dict]:
-    import shutil
-
-    ns = DENSE_N[:1] if quick else DENSE_N
-    have = shutil.which("liggghts") is not None
-    print(f"\n5. Dense beds: close-packed steel balls (r = {DENSE_RADIUS_MM:g} mm) at rest in a cylinder, Hertz e = 0.516,"
-          f" μ = 0.8, dt = 1 µs; one core each: CPU time per ball-step, peak RSS, set-up;"
-          f" LIGGGHTS {'from the same start' if have else 'not installed (liggghts not on PATH)'}")
-    print(f"  {'case':18} {'code':9} {'thr':>3} {'steps':>5} {'set-up s':>8} {'ns CPU/ball-step':>16}"
-          f" {'ns wall/ball-step':>17} {'RSS MiB':>8} {'KiB/ball':>8} {'others':>6}")
-    rows = []
-    with tempfile.TemporaryDirectory(prefix="taimill-dense-") as tmp:
-        cases = [(n, False) for n in ns] + [(ns[min(1, len(ns) - 1)], True)]
-        for n, drum in cases:
-            preset = dense_case(Path(tmp), n, drum)
-            label = f"{'drum' if drum else 'bed'} {n}"
-            steps = DENSE_STEPS[n]
-            settle = 0 if drum or quick else DENSE_SETTLE.get(n, 0)
-            late = []  # the settled bed's rows, printed after the CLI's
-            r = measure(dict(kind="dense", preset=str(preset), steps=steps, threads=1, drum=drum, settle=settle,
-                             spawned=time.time()), timeout=3600)
-            rows.append(dict(case=label, code="taimill", n=n, drum=drum, **r))
-            if "settled" in r:
-                late.append(dict(rows[-1], **r["settled"], case=f"{label} settled"))
-            if have and (n <= LIGGGHTS_MAX_N or liggghts_all):
-                r = measure(dict(kind="liggghts", preset=str(preset), dir=str(Path(tmp) / f"lig{n}{drum}"),
-                                 steps=steps, drum=drum, settle=settle, timeout=3600), timeout=3700)
-                rows.append(dict(case=label, code="LIGGGHTS", n=n, drum=drum, **r))
-                if "settled" in r:
-                    late.append(dict(rows[-1], **r["settled"], case=f"{label} settled"))
-            elif have:
-                rows.append(dict(case=label, code="LIGGGHTS", n=n, drum=drum,
-                                 error=f"skipped above {LIGGGHTS_MAX_N} balls (--liggghts-all runs it)"))
-            if not drum and n == 100_000 or quick and not drum:
-                # twice, each in its own worker (peak RSS is per process tree): the first
-                # with the kernel cache as it is (a first run of this size compiles its
-                # kernels: ≈ 7 s and 100 MB more at 10⁵ balls), the second warm
-                for code in ("CLI run", "CLI again"):
-                    out = Path(tmp) / f"cli{n}-{len(rows)}.zarr"
-                    r = measure(dict(kind="cli", preset=str(preset), out=str(out), timeout=3600), timeout=3700)
-                    rows.append(dict(case=label, code=code, n=n, drum=drum, **r))
-            rows += late
-            for row in rows[-6:]:
-                if "printed" not in row:
-                    print_dense_row(row)
-                    row["printed"] = True
-    pairs = {}
-    for row in rows:
-        if "ns_cpu" in row:
-            pairs.setdefault(row["case"], {})[row["code"]] = row["ns_cpu"]
-    for case, p in pairs.items():
-        if "taimill" in p and "LIGGGHTS" in p:
-            print(f"  {case}: taimill / LIGGGHTS CPU per ball-step = {p['taimill'] / p['LIGGGHTS']:.2f}"
-                  " (issue 16 target ≤ 0.5)")
-    return rows
-
-
-WORKERS.update(dense=work_dense, liggghts=work_liggghts, cli=work_cli)
+def print_dense_header():
+    print(f"  {'case':19} {'code':19} {'thr':>3} {'steps':>9} {'set-up s':>8} {'ns CPU/ball-step':>16}"
+          f" {'ns wall/ball-step':>17} {'RSS MiB':>7} {'/LIGGGHTS':>9} {'target':>6}", flush=True)
 
 
 def print_dense_row(r: dict):
+    steps = "{}→{}".format(*r["steps_asked"])
     if "error" in r:
-        print(f"  {r['case']:18} {r['code']:9} {r['error']}", flush=True)
+        print(f"  {r['case']:19} {r['code']:19} {r['threads']:>3} {steps:>9} failed: {r['error']}", flush=True)
         return
-    n = r["n"]
-    if r["code"].startswith("CLI"):
-        print(f"  {r['case']:18} {r['code']:9} whole process {r['wall']:.1f} s ({r['steps']} steps, store, summary),"
-              f" peak RSS {r['rss_mib']:.0f} MiB = 300 MB + {(r['rss_mib'] * 2**20 - 300e6) / n / 1024:.2f} KiB/ball",
-              flush=True)
-        print(f"  {'':18} {'':9} set-up {r['setup']:.1f} s wall, {r['setup_cpu']:.1f} s CPU (interpreter start to the"
-              f" first step done; issue 16: ≤ 10 s at 10⁵ balls); whole process {r['cpu']:.1f} s CPU", flush=True)
-        return
-    cpu = r["loop_cpu"] if r["code"] == "LIGGGHTS" else r["cpu"]
-    wall = r["loop_wall"] if r["code"] == "LIGGGHTS" else r["wall"]
-    r["ns_cpu"] = cpu / (r["steps"] * n) * 1e9
-    r["ns_wall"] = wall / (r["steps"] * n) * 1e9
-    others = f"{r['others']:.2f}" if "others" in r else "-"
-    if "busy" in r:
-        r.update(load_metrics(r))
-        others = f"{r['others']:.2f}"
-    print(f"  {r['case']:18} {r['code']:9} {r['threads']:>3} {r['steps']:>5} {r['setup']:>8.1f} {r['ns_cpu']:>16.1f}"
-          f" {r['ns_wall']:>17.1f} {r['rss_mib']:>8.0f} {r['rss_mib'] * 1024 / n:>8.2f} {others:>6}", flush=True)
+    ratio = f"{r['ratio']:.2f}" if r.get("ratio") is not None else "-"
+    target = f"≤ {r['target']:g} {r['verdict']}" if r.get("verdict") else ""
+    print(f"  {r['case']:19} {r['code']:19} {r['threads']:>3} {steps:>9} {r['setup']:>8.1f} {r['ns_cpu']:>16.1f}"
+          f" {r['ns_wall']:>17.1f} {r['rss_mib']:>7.0f} {ratio:>9} {target}", flush=True)
+
+
+def dense_million(tmp: Path) -> dict:
+    """One `taimill run` of DENSE_MILLION balls (close-packed bed, statistics), MILLION_STEPS
+    steps on one thread, end to end: wall, CPU, peak RSS of the process."""
+    preset = dense_case(tmp, DENSE_MILLION, False)
+    cli = preset.with_name("cli.toml")
+    cli.write_text(preset.read_text().split("[outputs]")[0]
+                   + f'[outputs]\ntrajectory_rate = {float(f"{1 / (MILLION_STEPS * DENSE_DT):.9g}")!r}\nevents = "spectra"\n')
+    out = tmp / "million.zarr"
+    cmd = [sys.executable, "-m", "taimill", "run", str(cli), "--duration", repr((MILLION_STEPS + 0.25) * DENSE_DT),
+           "--out", str(out), "--json", "--overwrite"]
+    env = os.environ | {"PYTHONPATH": str(ROOT), "TI_CPU_MAX_NUM_THREADS": "1"}
+    r = run_child(cmd, ROOT, DENSE_TIMEOUT, env, tmp / "million.log")
+    summary = json.loads(r.pop("stdout"))
+    return r | dict(steps=summary["steps"], run_wall=summary.get("wall_seconds"))
+
+
+def dense_section(quick: bool, million: bool = True) -> list[dict]:
+    import shutil
+
+    if not shutil.which("liggghts"):
+        print("\n5. Dense beds: liggghts not on PATH, LIGGGHTS rows skipped")
+    cases = QUICK_DENSE_CASES if quick else DENSE_CASES
+    print(f"\n5. Dense beds: steel balls (r = {DENSE_RADIUS_MM:g} mm) on lattices of pitch 2r + {DENSE_GAP:g} m in a"
+          " cylinder, Hertz e = 0.516, μ = 0.8, dt = 1 µs; taimill and LIGGGHTS 3.8 end to end through their"
+          f" command lines, one core each (taimill: a warm-up run first; up to {DENSE_REPEAT_UP_TO} balls the best of"
+          f" {DENSE_REPEATS} runs of each length); per ball-step = (N2-step run − N1-step run)"
+          " / ((N2 − N1) n); ratio = taimill / LIGGGHTS (primitive walls; mesh for the drum), CPU")
+    print_dense_header()
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="taimill-dense-") as tmp_name:
+        tmp = Path(tmp_name)
+        for c in cases:
+            base = dict(case=c["case"], n=c["n"], lattice=c["lattice"], drum=c["drum"], steps_asked=list(c["steps"]))
+            try:
+                preset = dense_case(tmp, c["n"], c["drum"], c["lattice"])
+            except Exception as e:  # noqa: BLE001 - one line, the section goes on
+                rows.append(dict(base, code="set-up", threads=1, error=f"{type(e).__name__}: {e}"))
+                print_dense_row(rows[-1])
+                continue
+            rep = DENSE_REPEATS if c["n"] <= DENSE_REPEAT_UP_TO else 1
+            jobs = [(f"LIGGGHTS {w}", 1, lambda w=w: liggghts_cli(preset, tmp, c["n"], c["steps"], w, c["drum"], rep))
+                    for w in c["walls"] if shutil.which("liggghts")]
+            warm = c["steps"][0] if c["drum"] else None
+            jobs += [(f"taimill {ev}", 1, lambda ev=ev: taimill_cli(preset, tmp, c["n"], c["steps"], ev, 1, rep, warm))
+                     for ev in DENSE_EVENTS]
+            if c.get("threads2"):
+                jobs.append(("taimill 2 threads", 2,
+                             lambda: taimill_cli(preset, tmp, c["n"], c["steps"], "spectra", 2, rep, warm)))
+            here = []
+            for code, threads, job in jobs:
+                try:
+                    r = dict(base, code=code, threads=threads, **job())
+                except Exception as e:  # noqa: BLE001 - one line, the section goes on
+                    r = dict(base, code=code, threads=threads, error=f"{type(e).__name__}: {e}")
+                here.append(r)
+            reference = next((r for r in here if r["code"] == f"LIGGGHTS {'mesh' if c['drum'] else 'primitive'}"
+                              and "error" not in r), None)
+            for r in here:
+                if r["code"].startswith("taimill") and r["threads"] == 1 and "error" not in r and reference:
+                    r["ratio"] = r["ns_cpu"] / reference["ns_cpu"]
+                    if r["code"] == "taimill spectra" and c["target"] is not None:
+                        r.update(target=c["target"], verdict="PASS" if r["ratio"] <= c["target"] else "MISS")
+                print_dense_row(r)
+            rows += here
+            one = next((r for r in here if r["code"] == "taimill spectra" and "error" not in r), None)
+            two = next((r for r in here if r["code"] == "taimill 2 threads" and "error" not in r), None)
+            if one and two:
+                eff = one["ns_wall"] / (2 * two["ns_wall"])
+                rows.append(dict(base, code="parallel efficiency", threads=2, wall_1=one["ns_wall"],
+                                 wall_2=two["ns_wall"], efficiency=eff))
+                print(f"  {'':19} 2 threads: wall {one['ns_wall']:.1f} → {two['ns_wall']:.1f} ns/ball-step,"
+                      f" parallel efficiency {eff:.2f} (wall 1 thread / (2 × wall 2 threads))", flush=True)
+            if c.get("rss_check") and one:
+                limit = (DENSE_RSS_BASE + DENSE_RSS_PER_BALL * c["n"]) / 1e6
+                mb = one["rss_mib"] * 2**20 / 1e6
+                verdict = "PASS" if mb <= limit else "MISS"
+                rows.append(dict(base, code="RSS check", threads=1, rss_mb=mb, limit_mb=limit, verdict=verdict))
+                print(f"  {'':19} peak RSS (taimill spectra, one thread): {mb:.0f} MB = 300 MB +"
+                      f" {(mb * 1e6 - DENSE_RSS_BASE) / c['n'] / 1e3:.2f} kB/ball; limit 300 MB + 1 kB/ball ="
+                      f" {limit:.0f} MB: {verdict}", flush=True)
+        if million and not quick:
+            base = dict(case=f"bed {DENSE_MILLION}", n=DENSE_MILLION, lattice="hcp", drum=False, code="taimill run",
+                        threads=1)
+            try:
+                r = dict(base, **dense_million(tmp))
+                print(f"  {r['case']:19} {r['code']:19} {1:>3} whole process {r['steps']} steps: wall {r['wall']:.1f} s,"
+                      f" CPU {r['cpu']:.1f} s, peak RSS {r['rss_mib']:.0f} MiB"
+                      f" ({r['rss_mib'] * 2**20 / DENSE_MILLION / 1e3:.2f} kB/ball)", flush=True)
+            except Exception as e:  # noqa: BLE001
+                r = dict(base, error=f"{type(e).__name__}: {e}")
+                print(f"  {r['case']:19} {r['code']:19} failed: {r['error']}", flush=True)
+            rows.append(r)
+    return rows
+
+
+WORKERS.update(dense=work_dense)
 
 
 # ---------------------------------------------------------------- main
@@ -1081,7 +1242,7 @@ def main():
     ap.add_argument("--quick", action="store_true", help="short run for CI (< 2 min)")
     ap.add_argument("--only", choices=("reference", "scaling", "recording", "sweep", "dense", "presets", "trajectory"),
                     help="run one section")
-    ap.add_argument("--liggghts-all", action="store_true", help="dense beds: also run LIGGGHTS at 10⁶ balls")
+    ap.add_argument("--skip-million", action="store_true", help="dense beds: skip the taimill run of 10⁶ balls")
     ap.add_argument("--json", type=Path, metavar="FILE", help="write every number to FILE")
     ap.add_argument("--ab", type=Path, metavar="DIR", help="only section 8: this checkout against the one in DIR"
                     " (e.g. `git worktree add DIR HEAD~1`), interleaved")
@@ -1110,7 +1271,7 @@ def main():
     if args.only in (None, "sweep"):
         report["sweep"] = sweep_section(args.quick)
     if args.only in (None, "dense"):
-        report["dense"] = dense_section(args.quick, args.liggghts_all)
+        report["dense"] = dense_section(args.quick, not args.skip_million)
     if args.only in (None, "presets"):
         report["presets"] = presets_section(QUICK_DURATION if args.quick else FULL_DURATION)
     if args.only in (None, "trajectory"):

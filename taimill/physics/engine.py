@@ -254,8 +254,13 @@ class Engine:
     BALL_PAD = 8  # f64 × 8 = 64 B
     BUFFER_BYTES = 64 << 20
     EVENT_ROWS = 1 << 14  # event buffer rows at least (×120 B)
-    LARGE_FRAME_BYTES = 16 << 20  # frames buffered in parallel mode (at least one)
+    LARGE_FRAME_BYTES = 8 << 20  # frames buffered in parallel mode (at least one)
     LARGE_EVENT_BYTES = 32 << 20  # events buffered in parallel mode, half of them the per-step margin
+    # parallel mode: a launch stops at this share of the event buffer. Peak RSS of a 10⁵-ball
+    # drum (`taimill run`, one thread, 2000 steps, kernels cached; the CPU time did not
+    # move): 1 (the whole buffer) 412 MiB, 8: 383, 32: 381; and with LARGE_FRAME_BYTES
+    # 8 MiB instead of 16 (one frame of 10⁵ balls instead of two), 8: 376 MiB = 395 MB
+    LAUNCH_EVENT_SHARE = 8
 
     def __init__(self, batch, balls, *, mode="fused", use_grid=True, grid_cells=1, frame_capacity=256, pool=None,
                  reorder=None, models=None):
@@ -274,6 +279,10 @@ class Engine:
             events = max(self.EVENT_ROWS, min(events, self.LARGE_EVENT_BYTES // (8 * S.NCOL)))
             self.margin = min(self.margin, events // 2)
             frames = int(max(1, min(frame_capacity, self.LARGE_FRAME_BYTES // (72 * n))))
+        # a launch stops once more than 1/LAUNCH_EVENT_SHARE of the event buffer is used
+        # (each of its steps still has `margin` rows free): what a drain copies (NumPy
+        # rows, the sorted table, the sinks' share) stays small beside the mill's fields
+        self.launch_margin = max(self.margin, events - max(1, events // self.LAUNCH_EVENT_SHARE))
         self.F = S.Fields(batch, n, events, frames, grid_cells, pool, share_pairs=mode == "fused", reorder=reorder,
                           models=models)
         self._spare: dict[int, list[np.ndarray]] = {}  # drain's frame arrays per mill (_frame_arrays)
@@ -290,7 +299,7 @@ class Engine:
             advance_fused(F, n_steps, self.margin, self.use_grid)
             return
         for _ in range(n_steps):
-            go = begin_step(F, self.margin)
+            go = begin_step(F, self.launch_margin)
             if not go:
                 break
             if go & STALE:

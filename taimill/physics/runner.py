@@ -36,6 +36,12 @@ from taimill.schema import DERIVED_EVENT_COLUMNS, EVENT_COLUMNS
 
 _initialised = False
 OFFLINE_CACHE_BYTES = 1 << 30  #: Taichi's offline kernel cache may grow to this (init_taichi)
+# Taichi's CFG optimisation off: LLVM's own passes (O3) do the same forwarding and
+# dead-store removal, and Taichi's quadratic version took most of a first compile.
+# Measured with `taimill run p4-cy-steel` and a fresh kernel cache on the 2-core AMD EPYC
+# machine: first compile 19.4 → 4.3 s wall; the kernels run as fast (CY steel, 3 s,
+# twice each: 6.9-7.7 → 7.6-7.9× real time) and give the same bits (the golden runs).
+CFG_OPTIMIZATION = False
 # balls: beyond this one mill runs in parallel mode. Measured crossover on the 2-core
 # machine (scripts/bench.py): fused 366 vs parallel 673 µs/step at 10 000 balls,
 # 5263 vs 4311 at 100 000.
@@ -114,16 +120,16 @@ def cache_folder() -> str:
 # s, compiling the kernels of one engine (Runner.setup_seconds: Taichi's start, fields,
 # kernels), fused mode, 12 balls, measured on the 2-core AMD EPYC machine the project is
 # developed on with `taimill run p4-cy-steel` and a fresh TI_OFFLINE_CACHE_FILE_PATH:
-# 19.7 s the first time, 2.0 s from Taichi's cache. Used until this machine has
-# measured its own (the markers).
-FIRST_COMPILE_SECONDS = 19.7
-CACHED_COMPILE_SECONDS = 2.0
+# 3.6 s the first time, 0.87 s from Taichi's cache (CFG_OPTIMIZATION off; 19.7 and 2.0 s
+# with it). Used until this machine has measured its own (the markers).
+FIRST_COMPILE_SECONDS = 3.6
+CACHED_COMPILE_SECONDS = 0.9
 # CPU s of a set-up above which its kernels were compiled, not read from Taichi's cache:
-# a Runner of those 12 balls took 21.3 s CPU the first time and 1.25 s from the cache
-# (Runner.setup_seconds, the same machine). CPU time, not wall time: other processes on
-# the cores stretch the wall time (127 s and 8.0 s in that measurement, while other jobs
-# shared both cores) but hardly the CPU time.
-FIRST_COMPILE_CPU_SECONDS = 5.0
+# a Runner of those 12 balls took 3.66 s CPU the first time and 0.89 s from the cache; a
+# parallel-mode Runner of 10⁵ balls (which compiles a step's first kernel up front) 1.54
+# and 0.50 s (Runner.setup_seconds, the same machine). CPU time, not wall time: other
+# processes on the cores stretch the wall time but hardly the CPU time.
+FIRST_COMPILE_CPU_SECONDS = 1.2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -137,7 +143,7 @@ class CompilePlan:
     marker: str  #: the marker file recording this shape's compiles
 
     def text(self) -> str:
-        """"compiling kernels for 12 balls (first run of this size, ≈ 20 s)"."""
+        """"compiling kernels for 12 balls (first run of this size, ≈ 3.6 s)"."""
         why = "first run of this size" if self.first else "from the kernel cache"
         return (f"compiling kernels for {self.balls} ball{'s' if self.balls != 1 else ''} "
                 f"({why}, ≈ {self.seconds:.2g} s)")
@@ -312,6 +318,9 @@ def init_taichi(threads: int | None = None):
     # evicted kernels another shape then compiled again (≈ 20 s CPU each): the test suite
     # took 13 min on a warm cache. 1 GiB keeps them all.
     kw = {"offline_cache_max_size_of_files": OFFLINE_CACHE_BYTES}
+    # Taichi's control-flow-graph pass (store-to-load forwarding and dead-store removal
+    # over a whole kernel, before LLVM) is most of a first compile: see CFG_OPTIMIZATION.
+    kw["cfg_optimization"] = CFG_OPTIMIZATION
     # Taichi's own warnings are about its compile cache (a lock held by another taimill
     # starting at the same moment, or left by a killed one): the run is unaffected, only
     # its start-up is uncached, and they would break the one-line error contract on

@@ -41,7 +41,7 @@ def _emit(a, value, text, figure=None):
 
 def announced(command):
     """The command, saying on stderr when its simulations compile kernels (a first
-    drop test takes 20 s, a later one 1.3 s: physics.runner.CompilePlan)."""
+    drop test takes ≈ 4 s, a later one ≈ 1 s: physics.runner.CompilePlan)."""
     def run(a) -> int:
         from taimill.cli.run import say
         from taimill.runs.simulation import announcing

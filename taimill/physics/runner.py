@@ -315,8 +315,8 @@ def init_taichi(threads: int | None = None):
     # Taichi's offline cache evicts a quarter of its kernels (least recently used) whenever
     # it exceeds its default 100 MB. taimill's engine shapes (ball counts, batches, contact
     # models, launch modes) fill ≈ 130 MB, so with the default every run of a new shape
-    # evicted kernels another shape then compiled again (≈ 20 s CPU each): the test suite
-    # took 13 min on a warm cache. 1 GiB keeps them all.
+    # evicted kernels another shape then compiled again (≈ 20 s CPU each then, ≈ 4 s since
+    # CFG_OPTIMIZATION): the test suite took 13 min on a warm cache. 1 GiB keeps them all.
     kw = {"offline_cache_max_size_of_files": OFFLINE_CACHE_BYTES}
     # Taichi's control-flow-graph pass (store-to-load forwarding and dead-store removal
     # over a whole kernel, before LLVM) is most of a first compile: see CFG_OPTIMIZATION.

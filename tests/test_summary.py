@@ -8,6 +8,7 @@ import math
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from taimill.analysis.run import analyse
@@ -130,3 +131,20 @@ def test_the_run_summary_has_the_regime_class_and_wall_lag(store):
         assert s["regime_class"] == s["regime"]
     text = summary_table(s)
     assert "class (regime map: 5 classes)" in text and "wall lag" in text and s["regime_class"] in text
+
+
+def test_the_balance_of_a_bed_settling_in_a_jar_at_rest_is_relative_to_what_it_dissipated():
+    # a jar at rest does next to no work (1e-40 J): the error was once 10³⁸; the scale
+    # is now the larger of the work and the dissipated energy (here 2 J, error 1e-6 J)
+    from taimill.analysis.summary import EnergyLedger
+
+    t = np.linspace(0.0, 0.01, 11)
+    potential = 5.0 - 200.0 * t  # the bed falls 2 J
+    dissipated = 200.0 * t - 1e-6 * (t > 0)  # and dissipates it, but for 1 µJ
+    block = {"time": t, "kinetic": np.zeros_like(t), "potential": potential, "elastic": np.zeros_like(t),
+             "drive_work": 1e-40 * t, "dissipated": dissipated}
+    ledger = EnergyLedger(0.0)
+    ledger.add(block)
+    out = ledger.result(0.01)
+    assert out["energy_balance_error"] == pytest.approx(1e-6 / 2.0, rel=1e-6)
+    assert out["energy_balance_worst"] == pytest.approx(1e-6 / 2.0, rel=1e-6)

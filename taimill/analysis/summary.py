@@ -27,7 +27,8 @@ from taimill.schema import ENERGY_COLUMNS, MECHANISM_CLASSES, MECHANISM_COLUMNS,
 
 class EnergyLedger:
     """Energy balance from the cumulative ledger rows: E_kin + E_pot + E_el + dissipated
-    must equal E_0 + drive work; errors relative to the largest |drive work|.
+    must equal E_0 + drive work; errors relative to the largest |drive work| or
+    dissipated energy so far, whichever is larger.
 
     Everything is counted from the first row seen: a stream that starts mid-run (a
     recording begun in the TUI at t = 20 s) balances from its own start, where the
@@ -52,7 +53,11 @@ class EnergyLedger:
         # the imbalance and scale need five columns: not a copy of all of them per row
         rows = np.column_stack(cols[:6])
         self.worst = max(self.worst, float(np.abs(self.imbalance(rows)).max()))
-        self.scale = max(self.scale, float(np.abs(rows[:, 4] - self.first[4]).max()))
+        # the energy that went through the mill: its drive work, or what it dissipated
+        # where that is more (a bed settling in a jar at rest does ≈ 0 work and would
+        # otherwise give an error of 10³⁸)
+        self.scale = max(self.scale, float(np.abs(rows[:, 4] - self.first[4]).max()),
+                         float(np.abs(rows[:, 5] - self.first[5]).max()))
 
     def imbalance(self, rows):
         """(E_kin + E_pot + E_el + dissipated) - (E_0 + drive work), J, per row, with

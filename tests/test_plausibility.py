@@ -117,3 +117,20 @@ def test_a_run_of_more_than_a_few_minutes_states_its_estimate():
     assert long_run_note(load_preset(CY)) is None  # ≈ 4 s on one core
     note = long_run_note(load_preset(ROOT / "presets" / "p4-zr80-beads-1mm.toml"))
     assert note is not None and "30000 balls" in note and " h" in note
+
+
+def test_a_pairs_friction_used_for_other_materials_is_said_once(tmp_path):
+    # steel-steel's μ was measured with steel balls on a steel jar: with zirconia balls in a
+    # zirconia bowl it is used as it is, and said so; a pair of those materials, the
+    # dry-ceramic-powder pair (its own assumption line) and a [friction] table are silent
+    zr = {"balls.material": "zirconia", "jar_material": "zirconia"}
+    borrowed = [w for w in load_preset(CY, zr).warnings if w.startswith("friction of pair")]
+    assert borrowed == ["friction of pair steel-steel (mu_s = 1, mu_d = 0.8) was measured for steel-c1020 balls on "
+                        "aisi-304 walls and is used as it is for zirconia balls on zirconia walls; --pair names one for "
+                        "your powder (taimill materials lists them, e.g. dry-ceramic-powder)"]
+    for over in ({"pair": "zirconia-zirconia"}, {"pair": "dry-ceramic-powder"}):
+        assert not [w for w in load_preset(CY, {**zr, **over}).warnings if w.startswith("friction of pair")]
+    for top, said in (("", 1), ('[friction]\nmu_s = 0.5\nmu_d = 0.4\n', 0)):
+        path = Path(_preset(tmp_path, top))
+        path.write_text(path.read_text().replace('material = "steel-c1020"', 'material = "zirconia"'))
+        assert len([w for w in load_preset(str(path)).warnings if w.startswith("friction of pair")]) == said

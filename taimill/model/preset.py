@@ -176,6 +176,8 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     friction, wall_friction = frictions[0], (frictions[1] if frictions[1] != frictions[0] else None)
     law = t.get("law", None, allowed=LAW_NAMES)
     ball_ball, ball_wall = contact_laws(contact, law, balls, jar, source, notes=warnings)
+    if ft is None:
+        warnings += _borrowed_friction(pair, contact, friction, balls, jar)
     softening = t.get("softening", 1.0, lo=1.0, hi=rules.SOFTENING_MAX)
     if softening != 1.0:
         ball_ball, ball_wall = soften(ball_ball, softening), soften(ball_wall, softening)
@@ -281,6 +283,23 @@ def _size_key(bt: Table) -> str:
     rules.one_ball_size(bt.where("diameter_mm"), bt.data.get("radius_mm"), bt.data.get("diameter_mm"))
     bt.used.update(("radius_mm", "diameter_mm"))
     return "diameter_mm" if bt.has("diameter_mm") else "radius_mm"
+
+
+def _borrowed_friction(pair: str, contact: str | None, friction: Friction, balls: Balls, jar: Jar) -> list[str]:
+    """The warning line when a pair's friction, measured with its contact set's ball and
+    wall materials, is used for other materials (its normal laws are then derived:
+    contact_sets.contact_source): friction describes the surfaces with their powder, and
+    no material's data gives it."""
+    if contact is None:  # a pair without a measured set (dry-ceramic-powder) says what it assumes itself
+        return []
+    table, _, _ = contact_table(contact)
+    measured = (table.get("ball"), table.get("wall"))
+    if rules.measured_set_applies(*measured, balls, jar):
+        return []
+    return [f"friction of pair {Path(pair).stem} (mu_s = {friction.mu_s:g}, mu_d = {friction.mu_d:g}) was measured for "
+            f"{measured[0]} balls on {measured[1]} walls and is used as it is for {balls.material.name} balls on "
+            f"{jar.wall_material} walls; --pair names one for your powder (taimill materials lists them, e.g. "
+            "dry-ceramic-powder)"]
 
 
 def _kind_friction(t: Table, kind: str, friction: Friction, contact: str | None, path: Path, pair_base: Path,

@@ -97,6 +97,27 @@ async def test_friction_fields_and_pair(mill, tmp_path):
         assert "steel-graphite" in message(app)
 
 
+async def test_a_preset_with_a_pair_file_offers_it_beside_the_pairs_of_its_contact_set(tmp_path):
+    # the menu once looked the running pair up among the built-in ones: a pair file (its
+    # path) ended the TUI with a KeyError before its screen opened
+    (tmp_path / "my-pair.toml").write_text('[pair.my-steel]\ncontact = "steel"\nmu_s = 0.5\nmu_d = 0.4\n'
+                                           'v_s_mm_s = 1\nv_d_mm_s = 10\n')
+    preset = tmp_path / "p.toml"
+    preset.write_text(P4.read_text().replace('pair = "steel-steel"', 'pair = "my-pair.toml"'))
+    mill = LiveMill(load_preset(preset))
+    app = MillApp(mill, out_dir=tmp_path, paused=True)
+    async with app.run_test(size=SIZE) as pilot:
+        menu = app.query_one("#pair")
+        mine = str(tmp_path / "my-pair.toml")
+        assert menu.value == mine and menu._options[0] == ("my-pair.toml", mine)
+        assert {"steel-steel", "steel-graphite", "dry-ceramic-powder"} <= {v for _, v in menu._options}
+        assert "zirconia-zirconia" not in {v for _, v in menu._options}  # another contact set
+        assert (mill.F.model.mu_s[0, 0], mill.F.model.mu_d[0, 0]) == (0.5, 0.4)
+        menu.value = "steel-graphite"
+        await pilot.pause()
+        assert (mill.F.model.mu_s[0, 0], mill.F.model.mu_d[0, 0]) == (0.1, 0.08)
+
+
 async def test_bad_values_are_refused_and_change_nothing(mill, tmp_path):
     app = MillApp(mill, out_dir=tmp_path, paused=True)
     async with app.run_test(size=SIZE) as pilot:

@@ -148,6 +148,15 @@ def pair_names() -> list[str]:
     return list(_materials_db()["pair"])
 
 
+def pairs_sharing(pair: str) -> list[str]:
+    """The pairs a mill running with `pair` (a built-in name or a pair file's path) may
+    switch to: `pair` itself, the built-in pairs of its contact set and those without a
+    measured set, which change friction only (rules.same_contact_set)."""
+    _, contact = load_friction(pair, "pair", base=None)
+    names = [name for name, p in _materials_db()["pair"].items() if p.get("contact") in (contact, None)]
+    return names if pair in names else [pair, *names]
+
+
 def _pair_sources(name: str) -> tuple[dict, dict]:
     """(table, {key: source text}) of a built-in pair; ({}, {}) for a pair file."""
     table = {} if name.endswith(".toml") else _materials_db()["pair"].get(name, {})

@@ -21,14 +21,14 @@ under the speed fields names it.
 from __future__ import annotations
 
 import math
-import tomllib
+from pathlib import Path
 
 from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical
 from textual.validation import Integer, Number
 from textual.widgets import Input, Label, Select, Static
 
-from taimill.model.materials import MATERIALS_FILE
+from taimill.model.materials import pairs_sharing
 from taimill.model.jars import jar_names
 from taimill.runs.live import LIMITS
 from taimill.tui.messages import FrictionRequested, Notice, RebuildRequested, SpeedsRequested
@@ -46,13 +46,10 @@ FIELDS = {
 }
 
 
-def pairs_for(contact_of_pair: str) -> list[str]:
-    """Friction pairs sharing the contact set of the given pair (materials.toml), and the
-    pairs without a measured set, which change friction only (rules.same_contact_set)."""
-    with open(MATERIALS_FILE, "rb") as f:
-        pairs = tomllib.load(f)["pair"]
-    contact = pairs[contact_of_pair].get("contact")
-    return [name for name, p in pairs.items() if p.get("contact") in (contact, None)]
+def pair_options(pair: str) -> list[tuple[str, str]]:
+    """(label, value) of the pair menu: the pairs the running mill may switch to, a pair
+    file shown by its file name."""
+    return [(Path(p).name if p.endswith(".toml") else p, p) for p in pairs_sharing(pair)]
 
 
 def shown(key: str, value) -> str:
@@ -120,7 +117,7 @@ class Controls(Vertical):
         with Horizontal(classes="row"):
             yield from self._gutter("pair")
             yield Label("pair")
-            yield Select([(p, p) for p in pairs_for(self.values["pair"])], value=self.values["pair"], allow_blank=False, id="pair", compact=True)
+            yield Select(pair_options(self.values["pair"]), value=self.values["pair"], allow_blank=False, id="pair", compact=True)
         with Horizontal(classes="row"):
             yield from self._gutter("jar")
             yield Label("jar")

@@ -274,7 +274,7 @@ def work_recording(task: dict) -> dict:
     from taimill.runs.simulation import run
     from taimill.recording.sink import RerunSink
     from taimill.store.sinks import NullSink
-    from taimill.store.run import ZarrSink
+    from taimill.store.writer import ZarrSink
 
     threads = start_taichi(task["threads"])
     preset = load_preset(PRESET)
@@ -356,7 +356,7 @@ def work_trajectory(task: dict) -> dict:
 
     from taimill.model.preset import load_preset
     from taimill.runs.simulation import run
-    from taimill.store.run import ZarrSink
+    from taimill.store.writer import ZarrSink
 
     start_taichi(1)
     preset = dataclasses.replace(load_preset(PRESET), trajectory_rate=task["rate"])

@@ -81,7 +81,7 @@ SAME_MODEL_KEYS = ("mean_se", "collision_rate", "randomness_index")
 
 def run_taimill(preset, out: Path) -> float:
     from taimill.runs.simulation import run
-    from taimill.store.run import ZarrSink
+    from taimill.store.writer import ZarrSink
 
     t0 = time.perf_counter()
     run(preset, ZarrSink(out))

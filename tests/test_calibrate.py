@@ -27,7 +27,8 @@ from taimill.model.preset import load_preset
 from taimill.model import laws as laws_np
 from taimill.calibration.runs import drop_test, drop_tests
 from taimill.runs.simulation import run
-from taimill.store.run import ZarrSink, open_run
+from taimill.store.run import open_run
+from taimill.store.writer import ZarrSink
 
 ROOT = Path(__file__).resolve().parent.parent
 OFFSETS_MM = list(range(13))  # thesis Fig 2.8: Δ = 0 … 12 mm (12 = 2r, grazing)

@@ -18,7 +18,9 @@ import zarr
 
 from inprocess import main
 from taimill.errors import StoreError
-from taimill.store.run import COMPRESSOR, open_run, put_npz
+from taimill.store.chunks import put_npz
+from taimill.store.layout import COMPRESSOR
+from taimill.store.run import open_run
 
 ROOT = Path(__file__).resolve().parent.parent
 PRESET = "presets/p4-cy-steel.toml"

@@ -28,7 +28,8 @@ from inprocess import main
 from taimill.analysis.run import analyse
 from taimill.errors import StoreError
 from taimill.store.output import OutputLock, lock_path
-from taimill.store.run import ZarrSink, open_run
+from taimill.store.run import open_run
+from taimill.store.writer import ZarrSink
 from taimill.store.sweep import open_sweep
 
 ROOT = Path(__file__).resolve().parent.parent

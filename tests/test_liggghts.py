@@ -25,7 +25,8 @@ from taimill.errors import ConfigError
 from taimill.model.jars import jar_names, load_jar
 from taimill.model.preset import load_preset
 from taimill.model.spec import from_preset
-from taimill.store.run import ZarrSink, open_run
+from taimill.store.run import open_run
+from taimill.store.writer import ZarrSink
 
 LIGGGHTS = shutil.which("liggghts")
 needs_liggghts = pytest.mark.skipif(LIGGGHTS is None, reason="liggghts binary not on PATH (apt-get install liggghts)")

@@ -380,7 +380,7 @@ def test_the_stress_model_plot_collapses_critical_collision_data_onto_one_curve(
 
 def run_store(path: Path, spectra, powder: dict | None) -> Path:
     """A finished run store holding only a config and spectra (no simulation)."""
-    from taimill.store.run import ZarrSink
+    from taimill.store.writer import ZarrSink
 
     config = {"balls": {"count": 2, "radius": 0.005}, "duration": 1.0, "dt": 1e-5, "trajectory_rate": 0}
     sink = ZarrSink(str(path))

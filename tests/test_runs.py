@@ -11,7 +11,8 @@ from taimill.errors import SimulationUnstable
 from taimill.model.preset import load_preset
 from taimill.runs.simulation import run
 from taimill.store.sinks import FanOut, MemorySink
-from taimill.store.run import ZarrSink, open_run
+from taimill.store.run import open_run
+from taimill.store.writer import ZarrSink
 
 PRESETS = sorted(Path(__file__).resolve().parent.parent.glob("presets/*.toml"))
 # small-media presets (10⁴ beads, dt ≈ 0.1 µs) would take hours for 1.5 s: a short CLI
@@ -225,21 +226,21 @@ def test_drained_frames_are_reused_only_when_nothing_else_holds_them(tmp_path):
 
 def test_a_dense_trajectory_commits_whole_chunks_and_journals_no_frames(tmp_path, monkeypatch):
     # At 10⁵ frames/s a launch fills the runner's frame buffer exactly (32768 frames,
-    # engine.can_step) and a trajectory chunk is that long (store.run.FRAME_CHUNK_ROWS):
+    # engine.can_step) and a trajectory chunk is that long (store.layout.FRAME_CHUNK_ROWS):
     # each commit finds the launch's frames and ledger rows in whole chunks, so the
     # journal, written uncompressed, holds only events. (With a frame buffer that ends
     # two frames short, or 65536-row chunks, every launch's frames went to the journal:
     # 0.5 of 2.3 s CPU for 3 s simulated.)
-    import taimill.store.run as store_run
+    import taimill.store.writer as store_writer
 
     segments = []
-    put_npz = store_run.put_npz
+    put_npz = store_writer.put_npz
 
     def spy(store, key, arrays):
         segments.append({k: len(v) for k, v in arrays.items() if not k.endswith("/start")})
         put_npz(store, key, arrays)
 
-    monkeypatch.setattr(store_run, "put_npz", spy)
+    monkeypatch.setattr(store_writer, "put_npz", spy)
     p = dataclasses.replace(load_preset("presets/p4-cy-steel.toml"), trajectory_rate=1e5, duration=1.2)
     mem = MemorySink()
     run(p, FanOut(mem, ZarrSink(tmp_path / "dense.zarr")))

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from taimill.schema import DERIVED_EVENT_COLUMNS, ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_COLUMNS, MECHANISM_COLUMNS
-from taimill.store.run import layout
+from taimill.store.layout import layout
 from taimill.store.sinks import MemorySink
 
 PHYSICS = Path(__file__).resolve().parent.parent / "taimill" / "physics"

@@ -14,7 +14,9 @@ import pytest
 import zarr
 
 from taimill.schema import DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS, FRAME_FIELDS, MECHANISM_COLUMNS, PER_BALL
-from taimill.store.run import SCHEMA_VERSION, ZarrSink, open_run, trim_to_valid
+from taimill.store.layout import SCHEMA_VERSION
+from taimill.store.run import open_run, trim_to_valid
+from taimill.store.writer import ZarrSink
 
 N_BALLS = 3
 REPO = Path(__file__).resolve().parents[1]
@@ -135,7 +137,7 @@ WRITER = textwrap.dedent(
     """
     import numpy as np
     from taimill.schema import DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS
-    from taimill.store.run import ZarrSink
+    from taimill.store.writer import ZarrSink
 
     def rows(k0, n, dtype):
         k = np.arange(k0, k0 + n)
@@ -273,7 +275,7 @@ def test_a_version_1_store_still_reads(tmp_path):
 
 @pytest.mark.parametrize("rows, chunk", [(13, 8), (70000, 65536)])  # large chunks: Blosc could use threads
 def test_chunks_are_the_bytes_zarr_writes(tmp_path, rows, chunk):
-    # the sink encodes and stores whole chunks itself (store.run._ChunkWriter): a chunk
+    # the sink encodes and stores whole chunks itself (store.chunks._ChunkWriter): a chunk
     # must be byte for byte what zarr stores for the same rows, full or partial
     rng = np.random.default_rng(11)
     sink = ZarrSink(tmp_path / "run.zarr", frame_chunk=chunk, event_chunk=2 * chunk)
@@ -315,7 +317,8 @@ def test_arrays_are_sized_for_the_expected_frames_and_resized_only_at_the_end(tm
     # growing an array rewrites its metadata (≈ 12 ms a table): the sink creates the
     # frame tables as long as duration × trajectory_rate, in whole chunks, and a run
     # that delivers them resizes each table once, at flush, to its rows exactly
-    from taimill.store.run import _TableWriter, expected_frames
+    from taimill.store.chunks import _TableWriter
+    from taimill.store.layout import expected_frames
 
     resized = []
     real = _TableWriter._resize

@@ -20,7 +20,8 @@ import pytest
 from helpers import numbers_without_unit
 from taimill import cli
 from taimill.errors import ConfigError
-from taimill.store.run import ZarrSink, open_run
+from taimill.store.run import open_run
+from taimill.store.writer import ZarrSink
 from taimill.runs.sweep import auto_batch, chunks, parse_values, refine
 from taimill.runs.executors import Job, PointResult
 from taimill.figures.sweep import band, mark_mixed, read_overlay, report_sweep

@@ -17,7 +17,8 @@ from taimill.analysis.summary import Summary
 from taimill.errors import ConfigError, StoreError
 from taimill.model.mechanisms import STRESS_MIN_UN
 from taimill.model.spectra import from_rows
-from taimill.store.run import RunStore, open_run, why
+from taimill.store.chunks import why
+from taimill.store.run import RunStore, open_run
 from taimill.schema import with_units
 
 

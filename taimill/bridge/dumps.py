@@ -35,7 +35,7 @@ from taimill.analysis.summary import SummarySink
 from taimill.bridge.liggghts import FORMAT, MANIFEST
 from taimill.errors import ConfigError
 from taimill.schema import EVENT_COLUMNS
-from taimill.store.run import ZarrSink
+from taimill.store.writer import ZarrSink
 from taimill.store.sinks import FanOut
 
 EVENTS_SOURCE = ("reconstructed from frames at dump resolution: a contact is found between two frames by "

@@ -43,7 +43,7 @@ from taimill.model.materials import load_material
 from taimill.model.preset import Preset
 from taimill.model.rules import max_impact_speed
 from taimill.model.spec import from_preset
-from taimill.store.run import plain
+from taimill.store.layout import plain
 
 FORMAT = "taimill-liggghts-case"
 VERSION = 1

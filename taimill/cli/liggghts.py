@@ -76,7 +76,7 @@ def cmd_import(a) -> int:
     from taimill.bridge.liggghts import MANIFEST
     from taimill.errors import ConfigError
     from taimill.store.output import Output
-    from taimill.store.run import is_run_store
+    from taimill.store.layout import is_run_store
 
     inputs = [a.case] + ([a.dump] if a.dump else [])  # the case (dumps, deck, STL): --out must not replace it
     _check_out(a.out, a.overwrite, "run store", is_run_store, inputs)

@@ -51,7 +51,8 @@ def cmd_run(a) -> int:
     with Outputs() as outputs:
         sink = NullSink()
         if a.out:
-            from taimill.store.run import ZarrSink, is_run_store
+            from taimill.store.layout import is_run_store
+            from taimill.store.writer import ZarrSink
 
             sink = ZarrSink(outputs.add(a.out, overwrite=a.overwrite, what="run", kind="run store", ours=is_run_store,
                                         inputs=inputs))

@@ -381,7 +381,7 @@ class Runner:
         every = min(s.frame_every for s in specs)
         # a launch of `room` steps from a frame step takes exactly frame_capacity frames
         # (engine.can_step): a power of two, so that a dense trajectory's chunks (at most
-        # FRAME_CAPACITY[1] rows, store.run.frame_chunk_rows) end where launches end and
+        # FRAME_CAPACITY[1] rows, store.layout.frame_chunk_rows) end where launches end and
         # the sink's commits find no rows outside whole chunks to journal
         room = self.engine.F.frame_capacity * every
         if mode == "fused":

@@ -23,7 +23,7 @@ from taimill.errors import ConfigError, WorkerDied
 from taimill.runs.executors import Job, PoolBroken, chunk_seconds, run_dask, run_local
 from taimill.runs.signals import sigterm_interrupts
 from taimill.analysis.sweep import CURVE_COLUMNS, parabolic_peak, refine_candidates
-from taimill.store.run import plain
+from taimill.store.layout import plain
 from taimill.store.sweep import SweepStore, scalars
 
 # Swept preset keys, outermost first (ratio innermost: a chunk holds neighbouring K).

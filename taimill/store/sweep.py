@@ -43,14 +43,17 @@ from zarr.codecs import ZstdCodec
 
 from taimill.errors import ConfigError, StoreError
 from taimill.store.output import Output
-from taimill.store.run import CHECKSUM, ZarrSink, location, open_run, plain, read_rows, why
+from taimill.store.chunks import location, read_rows, why
+from taimill.store.layout import CHECKSUM, plain
+from taimill.store.run import open_run
+from taimill.store.writer import ZarrSink
 
 SCHEMA_VERSION = 1
 VALUE_COLUMNS = ("jar", "balls", "pair", "plate_rpm", "ratio", "seed", "replica",
                  "plate_radius", "jar_radius", "ball_radius", "duration")
 TABLE_CHUNK = 4096
 # The table's arrays: zarr's default compressor (Zstandard), then the CRC-32C of the run
-# stores (store.run.CHECKSUM), so a changed byte is named on read; tables of sweeps
+# stores (store.layout.CHECKSUM), so a changed byte is named on read; tables of sweeps
 # begun before it carry no checksum and read as before.
 TABLE_CODECS = (ZstdCodec(level=0, checksum=False), CHECKSUM)
 

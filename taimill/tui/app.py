@@ -124,7 +124,7 @@ class MillApp(App):
         """Import rerun and zarr now (≈ 1 s): a recording then opens in ≈ 0.15 s, which
         the mill waits for (LiveMill.add_sink)."""
         importlib.import_module("taimill.recording.sink")
-        importlib.import_module("taimill.store.run")
+        importlib.import_module("taimill.store.writer")
 
     def settings(self) -> dict:
         """The mill's current settings, as the controls show them."""

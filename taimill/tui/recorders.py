@@ -1,5 +1,5 @@
 """Recording a live run on demand, from the current simulated time on: a rerun
-recording (.rrd, `taimill.recording.sink.RerunSink`) or a zarr store (`taimill.store.run.ZarrSink`).
+recording (.rrd, `taimill.recording.sink.RerunSink`) or a zarr store (`taimill.store.writer.ZarrSink`).
 
 Times in a recording are the mill's simulated times (a recording started at t = 12 s
 starts there). Its summary covers what it received — energy balance counted from its
@@ -43,7 +43,7 @@ def file_sink(kind: str, path: Path):
         from taimill.recording.sink import RerunSink
 
         return RerunSink(path)
-    from taimill.store.run import ZarrSink
+    from taimill.store.writer import ZarrSink
 
     return ZarrSink(path)
 

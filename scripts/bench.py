@@ -134,7 +134,7 @@ def start_taichi(threads: int | None) -> int:
     """ti.init through taimill; returns the number of CPU threads Taichi may use."""
     import taichi as ti
 
-    from taimill.physics.runner import init_taichi
+    from taimill.physics.taichi_start import init_taichi
 
     init_taichi(threads)
     return ti.lang.impl.current_cfg().cpu_max_num_threads
@@ -321,7 +321,7 @@ def work_batch(task: dict) -> dict:
     """B copies of the reference mill as one sweep chunk (one Runner, one thread), timed
     after a short compiling chunk of the same B."""
     from taimill.model.preset import load_preset
-    from taimill.physics.runner import init_taichi
+    from taimill.physics.taichi_start import init_taichi
     from taimill.runs.executors import Job, run_chunk
 
     init_taichi(threads=1)

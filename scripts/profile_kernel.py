@@ -40,7 +40,7 @@ def child(preset: str, seconds: float, out: Path) -> None:
     """Runs the preset (a compiling run first), then dumps the anonymous executable maps."""
     os.environ["TI_CPU_MAX_NUM_THREADS"] = "1"
     from taimill.model.preset import load_preset
-    from taimill.physics.runner import init_taichi
+    from taimill.physics.taichi_start import init_taichi
     from taimill.runs.simulation import run
     from taimill.store.sinks import NullSink
 

@@ -154,9 +154,9 @@ def test_taichi_source_positions_are_formatted_once_per_place_with_taichis_own_t
 
     from taichi.lang.ast import ast_transformer_utils as utils
 
-    from taimill.physics import contacts, engine, neighbours, runner, walls
+    from taimill.physics import contacts, engine, neighbours, taichi_start, walls
 
-    runner.init_taichi()
+    taichi_start.init_taichi()
     memo = utils.ASTTransformerContext.get_pos_info
     assert getattr(memo, "memoised", False)
     nodes = 0

@@ -18,7 +18,8 @@ import numpy as np
 import taichi as ti
 from taimill.model.preset import load_preset
 from taimill.model.spec import from_preset
-from taimill.physics.runner import Runner, init_taichi
+from taimill.physics.runner import Runner
+from taimill.physics.taichi_start import init_taichi
 from taimill.store.sinks import MemorySink
 
 init_taichi()

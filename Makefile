@@ -8,16 +8,17 @@ PY     := $(VENV)/bin/python
 PRESET ?= presets/p4-cy-steel.toml
 OUT    ?= runs/$(basename $(notdir $(PRESET))).zarr
 
-# taichi 1.7.4, its last release, has wheels for CPython 3.9-3.13 only: python3 builds the
-# environment if it is one of 3.10-3.13, else the first of python3.13 … python3.10 that
-# runs; with none, the check below says what to do
-OK_PY  := import sys; sys.exit(not (3, 10) <= sys.version_info[:2] <= (3, 13))
-PYTHON ?= $(or $(shell for p in python3 python3.13 python3.12 python3.11 python3.10; do $$p -c '$(OK_PY)' >/dev/null 2>&1 && { echo $$p; break; }; done),python3)
+# Python 3.10-3.14: taichi 1.7.4 (upstream's last release) has wheels for CPython up to 3.13,
+# and on 3.14 pyproject.toml installs the maintained fork taichi-forge instead
+# (docs/platform.md). python3 builds the environment if it is one of these, else the first
+# of python3.14 … python3.10 that runs; with none, the check below says what to do
+OK_PY  := import sys; sys.exit(not (3, 10) <= sys.version_info[:2] <= (3, 14))
+PYTHON ?= $(or $(shell for p in python3 python3.14 python3.13 python3.12 python3.11 python3.10; do $$p -c '$(OK_PY)' >/dev/null 2>&1 && { echo $$p; break; }; done),python3)
 
 .PHONY: run test bench
 
 $(PY):
-	@$(PYTHON) -c 'import sys; v = sys.version_info[:2]; sys.exit(0 if (3, 10) <= v <= (3, 13) else "taimill needs Python 3.10 to 3.13 (taichi 1.7.4 has no wheels for %d.%d); install one and give it: make run PYTHON=python3.12" % v)'
+	@$(PYTHON) -c 'import sys; v = sys.version_info[:2]; sys.exit(0 if (3, 10) <= v <= (3, 14) else "taimill needs Python 3.10 to 3.14 (neither taichi nor taichi-forge has wheels for %d.%d); install one and give it: make run PYTHON=python3.12" % v)'
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 

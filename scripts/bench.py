@@ -132,12 +132,10 @@ MARKER = "BENCH-RESULT "
 # ---------------------------------------------------------------- worker side
 def start_taichi(threads: int | None) -> int:
     """ti.init through taimill; returns the number of CPU threads Taichi may use."""
-    import taichi as ti
-
-    from taimill.physics.taichi_start import init_taichi
+    from taimill.physics.ti import init_taichi, internal
 
     init_taichi(threads)
-    return ti.lang.impl.current_cfg().cpu_max_num_threads
+    return internal("lang.impl").current_cfg().cpu_max_num_threads
 
 
 def clocks() -> tuple[float, float, float]:
@@ -321,7 +319,7 @@ def work_batch(task: dict) -> dict:
     """B copies of the reference mill as one sweep chunk (one Runner, one thread), timed
     after a short compiling chunk of the same B."""
     from taimill.model.preset import load_preset
-    from taimill.physics.taichi_start import init_taichi
+    from taimill.physics.ti import init_taichi
     from taimill.runs.executors import Job, run_chunk
 
     init_taichi(threads=1)
@@ -417,10 +415,17 @@ def cpu_model() -> str:
         return next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), "unknown")
 
 
+def taichi_version() -> str:
+    """The Taichi in use, 'taichi 1.7.4' or 'taichi-forge 0.7.0' (taimill's door picks it)."""
+    from taimill.physics.ti import describe
+
+    return describe()
+
+
 def machine() -> dict:
     return dict(
         cpus=os.cpu_count(), processor=cpu_model(), machine=platform.machine(), platform=platform.platform(),
-        python=platform.python_version(), taichi=importlib.metadata.version("taichi"),
+        python=platform.python_version(), taichi=taichi_version(),
         numpy=importlib.metadata.version("numpy"), mem_total_mib=meminfo_mib("MemTotal"),
         mem_available_mib=meminfo_mib("MemAvailable"), load_start=os.getloadavg(),
     )

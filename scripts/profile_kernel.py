@@ -40,7 +40,7 @@ def child(preset: str, seconds: float, out: Path) -> None:
     """Runs the preset (a compiling run first), then dumps the anonymous executable maps."""
     os.environ["TI_CPU_MAX_NUM_THREADS"] = "1"
     from taimill.model.preset import load_preset
-    from taimill.physics.taichi_start import init_taichi
+    from taimill.physics.ti import init_taichi
     from taimill.runs.simulation import run
     from taimill.store.sinks import NullSink
 
@@ -82,7 +82,7 @@ def kind(dso: str, in_kernel: bool) -> str:
     if in_kernel:
         return "Taichi kernels (JIT code)"
     for key, name in (("libm", "libm (trigonometry)"), ("libpython", "Python interpreter"),
-                      ("taichi_python", "Taichi runtime library"), ("numpy", "NumPy"), ("libc.so", "libc"),
+                      ("taichi_python", "Taichi runtime library"), ("taichi_forge", "Taichi runtime library"), ("numpy", "NumPy"), ("libc.so", "libc"),
                       ("kallsyms", "operating system")):
         if key in dso:
             return name

@@ -9,7 +9,6 @@ limit. The energy ledger closes with both springs storing energy."""
 
 import numpy as np
 import pytest
-import taichi as ti
 
 from helpers import steel
 from taimill.calibration.runs import impact_spec
@@ -22,6 +21,7 @@ from taimill.model.spec import MillSpec
 from taimill.physics.rolling_epsd2 import epsd2_torque
 from taimill.physics.runner import Runner
 from taimill.physics.tangential_history import history_force
+from taimill.physics.ti import ti
 from taimill.runs.simulation import run
 from taimill.store.sinks import MemorySink
 

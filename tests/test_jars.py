@@ -4,7 +4,6 @@ feature of a spinning jar."""
 
 import numpy as np
 import pytest
-import taichi as ti
 from matplotlib.path import Path as PolyPath
 
 from taimill.model.geometry import profile_sdf
@@ -15,6 +14,7 @@ from taimill.physics import walls
 from taimill.model.frame import Ramp
 from taimill.model.spec import from_preset
 from taimill.physics.runner import Runner
+from taimill.physics.ti import ti
 from taimill.store.sinks import MemorySink
 
 FRICTIONLESS = Friction("frictionless", 0.0, 0.0, 1e-3, 1e-2)

@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-import taichi as ti
 
 from taimill.model.contact_sets import pair_contact
 from taimill.model.preset import load_preset
@@ -10,6 +9,7 @@ from taimill.physics import laws
 from taimill.model import laws as laws_np
 from taimill.model.contact import registry, tangential
 from taimill.model.contact.registry import CONSTANT_E_LAWS
+from taimill.physics.ti import ti
 
 N_PER_MM15 = 1e3**1.5  # N/mm^1.5 → N/m^1.5
 

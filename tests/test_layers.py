@@ -1,6 +1,7 @@
 """The architecture as rules on the import graph, read from the source with `ast`
 (no import is executed). Each package may import only the packages listed for it in
-LAYERS; only `physics` imports taichi and only `figures` (and the recording, for
+LAYERS; only the door to Taichi (`taimill/physics/ti.py`) imports taichi or its fork
+taichi_forge, in the package, its tests and scripts, and only `figures` (and the recording, for
 colour maps) import matplotlib; no module imports itself through a cycle; the TUI reaches the
 simulation only through the live mill's public API; only `physics` writes Taichi fields
 (everything else changes a mill through the setters of `taimill.physics.mill`); the
@@ -45,7 +46,11 @@ LAYERS: dict[str, set[str]] = {
     "cli": NEUTRAL | {"model", "store", "analysis", "figures", "recording", "runs", "calibration", "tui", "bridge", "outcome", "design"},
 }
 # The recording takes its colour tables from matplotlib's colormaps; it draws nothing.
-THIRD_PARTY_HOMES = {"taichi": {"physics"}, "matplotlib": {"figures", "recording"}}
+THIRD_PARTY_HOMES = {"taichi": {"physics"}, "taichi_forge": {"physics"}, "matplotlib": {"figures", "recording"}}
+# The one module that imports an implementation of Taichi (by name, from its own table),
+# and the import names of those implementations.
+DOOR = "taimill/physics/ti.py"
+TAICHI_MODULES = ("taichi", "taichi_forge")
 # The one module of `runs` the TUI may use, and only its public names.
 TUI_GATE = "taimill.runs.live"
 
@@ -300,13 +305,58 @@ def test_a_restated_rule_is_named(tmp_path):
     assert any(v.startswith("taimill.runs.live:") and "'not both'" in v for v in restated_rules(root))
 
 
+def taichi_imports(path: Path) -> list[tuple[str, int]]:
+    """Every way a file reaches a Taichi implementation by name: `import taichi…`,
+    `from taichi_forge… import …`, and import_module / __import__ of such a name."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        names = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and not node.level:
+            names = [node.module or ""]
+        elif isinstance(node, ast.Call) and getattr(node.func, "id", getattr(node.func, "attr", None)) in (
+                "import_module", "__import__"):
+            names = [a.value for a in node.args[:1] if isinstance(a, ast.Constant) and isinstance(a.value, str)]
+        found += [(n, node.lineno) for n in names if n.split(".")[0] in TAICHI_MODULES]
+    return found
+
+
+def outside_the_door(repo: Path) -> list[str]:
+    """Imports of a Taichi implementation anywhere in the package, its tests or scripts
+    but the door."""
+    files = [p for d in ("taimill", "tests", "scripts") for p in sorted((repo / d).rglob("*.py"))]
+    return [f"{p.relative_to(repo)}:{line} imports {name} (only {DOOR} may)"
+            for p in files if p.relative_to(repo).as_posix() != DOOR for name, line in taichi_imports(p)]
+
+
+def test_only_the_door_imports_taichi():
+    assert outside_the_door(PACKAGE.parent) == []
+
+
+@pytest.mark.parametrize("file, line", [
+    ("taimill/physics/grid.py", "import taichi as ti"),
+    ("taimill/physics/engine.py", "from taichi_forge.lang import impl"),
+    ("tests/test_laws.py", "kernel_impl = importlib.import_module('taichi.lang.kernel_impl')"),
+    ("scripts/bench.py", "import taichi_forge"),
+])
+def test_a_planted_taichi_import_is_named(tmp_path, file, line):
+    repo = tmp_path / "repo"
+    for d in ("taimill", "tests", "scripts"):
+        shutil.copytree(PACKAGE.parent / d, repo / d, ignore=shutil.ignore_patterns("__pycache__", "__snapshots__", "golden"))
+    target = repo / file
+    n = len(target.read_text().splitlines()) + 1
+    target.write_text(target.read_text() + line + "\n")
+    assert any(v.startswith(f"{file}:{n} imports taichi") for v in outside_the_door(repo)), outside_the_door(repo)
+
+
 NUMPY_ONLY_TESTS = ("test_analysis", "test_store", "test_cli", "test_layers", "test_golden")
 
 
 def test_numpy_only_tests_do_not_start_taichi():
     # conftest and these test modules must not import taichi: they test NumPy code.
     code = ("import sys; " + "; ".join(f"import {m}" for m in ("conftest", *NUMPY_ONLY_TESTS))
-            + "; sys.exit('taichi' in sys.modules)")
+            + "; sys.exit('taichi' in sys.modules or 'taichi_forge' in sys.modules)")
     tests = Path(__file__).resolve().parent
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tests), str(PACKAGE.parent), os.environ.get("PYTHONPATH", "")])}
     assert subprocess.run([sys.executable, "-c", code], cwd=tests, env=env).returncode == 0

@@ -27,7 +27,7 @@ FIELD_BYTES_PER_BALL = 1400
 
 _MEASURE = """
 import sys
-from taimill.physics.taichi_start import init_taichi
+from taimill.physics.ti import init_taichi
 init_taichi(1)
 from taimill.physics.engine import Engine
 def rss():

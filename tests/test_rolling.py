@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import taichi as ti
 
 from helpers import steel
 from taimill.analysis.theory import pinning_friction
@@ -22,6 +21,7 @@ from taimill.model.preset import load_preset
 from taimill.model.spec import from_preset
 from taimill.physics import laws
 from taimill.physics.runner import Runner
+from taimill.physics.ti import ti
 from taimill.runs.simulation import run
 from taimill.store.sinks import MemorySink
 from texts import GOOD_PRESET

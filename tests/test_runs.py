@@ -126,7 +126,7 @@ def test_a_stale_taichi_cache_lock_is_removed_and_a_fresh_one_kept(tmp_path):
     warnings on stderr (whose error output is one line, tests/test_bad_input.py)."""
     import os
 
-    from taimill.physics.taichi_start import STALE_LOCK_SECONDS, clear_stale_cache_lock
+    from taimill.physics.ti import STALE_LOCK_SECONDS, clear_stale_cache_lock
 
     lock = tmp_path / "ticache.lock"
     lock.touch()
@@ -137,9 +137,8 @@ def test_a_stale_taichi_cache_lock_is_removed_and_a_fresh_one_kept(tmp_path):
 
 
 _TINY_TAICHI_PROGRAM = """
-from taimill.physics.taichi_start import init_taichi
+from taimill.physics.ti import init_taichi, ti
 init_taichi()
-import taichi as ti
 x = ti.field(ti.f64, shape=4)
 @ti.kernel
 def fill():

@@ -152,11 +152,11 @@ def test_taichi_source_positions_are_formatted_once_per_place_with_taichis_own_t
     import ast
     import types
 
-    from taichi.lang.ast import ast_transformer_utils as utils
+    from taimill.physics import contacts, engine, neighbours, walls
+    from taimill.physics import ti as door
 
-    from taimill.physics import contacts, engine, neighbours, taichi_start, walls
-
-    taichi_start.init_taichi()
+    utils = door.internal("lang.ast.ast_transformer_utils")
+    door.init_taichi()
     memo = utils.ASTTransformerContext.get_pos_info
     assert getattr(memo, "memoised", False)
     nodes = 0
@@ -181,7 +181,9 @@ def test_writing_a_large_mill_is_one_kernel_launch(monkeypatch):
     # a to_numpy/from_numpy pair per field was 36 launches of Taichi's copy kernels,
     # each specialised on its field (compiled, or its AST transformed when cached:
     # ≈ 1.2 s CPU of a 10⁵-ball set-up), and copied every mill's rows twice
-    from taichi.lang import kernel_impl
+    from taimill.physics.ti import internal
+
+    kernel_impl = internal("lang.kernel_impl")
 
     from taimill.model.preset import load_preset
     from taimill.model.spec import from_preset

@@ -15,11 +15,10 @@ ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = """
 import hashlib, json
 import numpy as np
-import taichi as ti
 from taimill.model.preset import load_preset
 from taimill.model.spec import from_preset
 from taimill.physics.runner import Runner
-from taimill.physics.taichi_start import init_taichi
+from taimill.physics.ti import init_taichi, ti
 from taimill.store.sinks import MemorySink
 
 init_taichi()

@@ -19,13 +19,12 @@ The contact response (response.py), the open-contact pool (pool.py) and the even
 (events.py) are in their own modules.
 """
 
-import taichi as ti
-
 from taimill.physics import state as S
 from taimill.physics.events import book_contact, book_mechanism, close_events
 from taimill.physics.frame import wall_velocity_ground
 from taimill.physics.pool import claim_row, read_history, slot_row, write_history
 from taimill.physics.response import contact_energy, contact_response, rolling_response
+from taimill.physics.ti import ti
 from taimill.physics.walls import wall_near
 
 

@@ -12,7 +12,6 @@ Two launch modes share every physics function:
 import sys
 
 import numpy as np
-import taichi as ti
 
 from taimill.physics import state as S
 from taimill.physics.neighbours import rebuild_parallel, rebuild_serial
@@ -20,6 +19,7 @@ from taimill.physics.contacts import ball_forces
 from taimill.physics.pool import pool_settle, release_rows
 from taimill.physics.frame import drive_turning, psi_at, steady, ramp_at, ramp_turn, wall_velocity_ground
 from taimill.physics.integrator import frame_acceleration, integrate
+from taimill.physics.ti import ti
 
 PAD = 512
 PSI_RESYNC = 4096  # steps between exact evaluations of cos ψ, sin ψ (psi_trig)

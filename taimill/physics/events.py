@@ -2,10 +2,9 @@
 event record written when it closes, and the dissipation ledger by mechanism
 (docs/model.md, collision events)."""
 
-import taichi as ti
-
 from taimill.model import spectra as SP
 from taimill.physics import state as S
+from taimill.physics.ti import ti
 
 
 @ti.func

@@ -11,7 +11,7 @@ Coriolis/centrifugal step turns the secular free-flight motion into an O(√dt) 
 jar centre, Ω²R_p(cosψ, sinψ, 0) - Ω̇R_p(-sinψ, cosψ, 0), and gravity.
 """
 
-import taichi as ti
+from taimill.physics.ti import ti
 
 Drive = ti.types.struct(
     om=ti.f64, om_dot=ti.f64,  # Ω (rad/s), Ω̇ (rad/s²) at the step's start

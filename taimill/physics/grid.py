@@ -4,7 +4,7 @@ diameter, so every touching pair lies in neighbouring cells. Ids inside a cell a
 ascending order in both builds, which makes the neighbour order, and so the force
 summation order, deterministic."""
 
-import taichi as ti
+from taimill.physics.ti import ti
 
 
 @ti.func

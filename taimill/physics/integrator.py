@@ -11,11 +11,10 @@ and books the step's drive work and dissipation into the ledger, after the frame
 this step was taken (so a frame sees state, stored energy and ledger of one instant).
 """
 
-import taichi as ti
-
 from taimill.physics import state as S
 from taimill.physics.frame import from_non_rotating, to_non_rotating, translation_acceleration, turn_basis
 from taimill.physics.neighbours import moved_too_far
+from taimill.physics.ti import ti
 
 
 @ti.func

@@ -4,10 +4,9 @@ hold the two equal), registered here by name in one table per kind. `normal_forc
 and the kernels take the sub-models as compile-time (template) arguments: a run's
 kernels contain only the sub-models it uses, with no test of a model in the loop."""
 
-import taichi as ti
-
 from taimill.physics.rolling_epsd2 import epsd2_torque
 from taimill.physics.tangential_history import history_force
+from taimill.physics.ti import ti
 
 
 @ti.func

@@ -4,7 +4,6 @@ ramps, time step and clock, friction): outside `physics`, a mill's fields change
 through these."""
 
 import numpy as np
-import taichi as ti
 
 from taimill.model.frame import Ramp
 from taimill.model.geometry import PIECE_COLUMNS, piece_bounds
@@ -12,6 +11,7 @@ from taimill.model import spectra as SP
 from taimill.model.materials import Friction
 from taimill.model.spec import MillSpec, grid_for, skin_for
 from taimill.physics import state as S
+from taimill.physics.ti import ti
 
 
 def write_mill(F, b: int, spec: MillSpec):

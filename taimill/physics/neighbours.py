@@ -5,10 +5,9 @@ all-pairs one exactly. Candidates come from the spatial hash (grid.py) or, for a
 balls where it is cheaper, from all pairs.
 """
 
-import taichi as ti
-
 from taimill.physics import grid, reorder, state as S
 from taimill.physics.grid import cell_coords, cell_index
+from taimill.physics.ti import ti
 
 
 @ti.func

@@ -9,9 +9,8 @@ the force pass, by release_rows in the integration pass, so pops and pushes neve
 Which row a contact gets changes nothing but where its sums are kept.
 """
 
-import taichi as ti
-
 from taimill.physics import state as S
+from taimill.physics.ti import ti
 
 
 @ti.func

@@ -23,9 +23,8 @@ follows, and slot_closed is empty between steps (release_rows): none of them mov
 x_ref and nbr are the scratch of the move.
 """
 
-import taichi as ti
-
 from taimill.physics import state as S
+from taimill.physics.ti import ti
 
 _INTS = 2 + 2 * S.SLOTS  # a row's slot_mask, user_of, slot_row and slot_partner in nbr's row
 assert _INTS <= S.NEIGHBOURS

@@ -3,9 +3,8 @@ model compiled for its contact type, and what its owner books of it (dissipation
 stored energy). Pure functions of the contact's local quantities and the mill's
 coefficients."""
 
-import taichi as ti
-
 from taimill.physics.laws import ROLLING, TANGENTIAL, elastic_energy, normal_force
+from taimill.physics.ti import ti
 
 
 @ti.func

@@ -1,7 +1,7 @@
 """EPSD2 rolling resistance, Taichi twin of taimill.model.contact.rolling_epsd2 (the
 physics and its sources are described there)."""
 
-import taichi as ti
+from taimill.physics.ti import ti
 
 
 @ti.func

@@ -1,5 +1,5 @@
 """The launcher: engines by shape, the compile notice, the launch/drain loop handing
-each mill's output to its sink, faults (Taichi's start: taichi_start).
+each mill's output to its sink, faults (Taichi's start: the door, physics/ti.py).
 
     Runner(specs) — advances any batch of MillSpecs (runs, tests, calibration, sweeps).
     compile_plan(specs) — whether a Runner of these mills compiles kernels, and for how long.
@@ -21,13 +21,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-import taichi as ti
 
 from taimill.errors import SimulationUnstable
 from taimill.physics import state as S
 from taimill.physics.engine import Engine, advance_fused, begin_step, export_events, export_frames
 from taimill.physics.mill import write_mill
-from taimill.physics.taichi_start import cache_folder, init_taichi
+from taimill.physics.ti import cache_folder, describe, init_taichi, ti
 from taimill.model.spec import MillSpec, grid_cells_for
 from taimill.model.spectra import Spectra
 from taimill.schema import DERIVED_EVENT_COLUMNS, EVENT_COLUMNS
@@ -148,7 +147,7 @@ def announcing(on_compile):
 def _source_digest() -> str:
     """Of every file whose code the kernels are compiled from (physics and model), so
     that changed kernels count as a new shape."""
-    h = hashlib.sha256(str(getattr(ti, "__version__", "")).encode())
+    h = hashlib.sha256(describe().encode())  # another Taichi compiles its own kernels
     root = Path(__file__).resolve().parent.parent
     for path in sorted([*root.glob("physics/*.py"), *root.glob("model/**/*.py")]):
         h.update(path.read_bytes())

@@ -6,11 +6,10 @@ structures (`F.spatial`) and output buffers (`F.out`). The sizes and the compile
 contact models stay on the Fields object itself. Shapes in brackets, SI units.
 """
 
-import taichi as ti
-
 from taimill.model.contact.registry import contact_model, law_by_name
 from taimill.model.geometry import MAX_PIECES, PIECE_COLUMNS
 from taimill.model import spectra as SP
+from taimill.physics.ti import ti
 from taimill.schema import DERIVED_EVENT_COLUMNS, DRIVE_FIELDS, ENERGY_COLUMNS, EVENT_COLUMNS, MECHANISM_COLUMNS
 
 # Contact slots per ball: 3 wall slots (side, floor, lid), then partner slots for the

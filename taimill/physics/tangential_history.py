@@ -1,7 +1,7 @@
 """Tangential spring with history, Taichi twin of taimill.model.contact.tangential_history
 (the physics and its sources are described there)."""
 
-import taichi as ti
+from taimill.physics.ti import ti
 
 
 @ti.func

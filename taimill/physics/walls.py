@@ -9,7 +9,7 @@ primitives by taimill.model.geometry (geometry is data: a new jar needs no code)
 twin of geometry.profile_sdf, piece rows as documented there.
 """
 
-import taichi as ti
+from taimill.physics.ti import ti
 
 SIDE, FLOOR, LID = 0, 1, 2
 LINE, ARC = 0, 1

@@ -78,7 +78,7 @@ _progress = None  # the local backend's queue, set in each worker process
 
 
 def _init_local_worker(progress_queue, parent: int):
-    from taimill.physics.taichi_start import init_taichi
+    from taimill.physics.ti import init_taichi
     from taimill.runs.signals import die_with_parent
 
     die_with_parent(parent)
@@ -110,7 +110,7 @@ def run_chunk(chunk_id: int, jobs: list[Job], keep_streams: bool) -> list[PointR
     worker's one thread)."""
     from taimill.model.spec import from_preset
     from taimill.physics.runner import Runner
-    from taimill.physics.taichi_start import init_taichi
+    from taimill.physics.ti import init_taichi
     from taimill.runs.simulation import point_result
     from taimill.runs.simulation import start_point
 

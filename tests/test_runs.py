@@ -1,7 +1,12 @@
 """Whole runs: every preset is a test (short, with physical checks), faults keep what was written,
 results are deterministic, the time step converges."""
 
+import contextlib
 import dataclasses
+import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +14,7 @@ import pytest
 
 from taimill.errors import SimulationUnstable
 from taimill.model.preset import load_preset
+from taimill.physics import ti as door
 from taimill.runs.simulation import run
 from taimill.store.sinks import FanOut, MemorySink
 from taimill.store.run import open_run
@@ -121,19 +127,22 @@ def test_mean_stress_energy_converges_in_dt():
     assert abs(a - b) < 0.04 * a
 
 
-def test_a_stale_taichi_cache_lock_is_removed_and_a_fresh_one_kept(tmp_path):
+@pytest.mark.parametrize("implementation", [i.name for i in door.IMPLEMENTATIONS])
+def test_a_stale_taichi_cache_lock_is_removed_and_a_fresh_one_kept(tmp_path, monkeypatch, implementation):
     """A lock left by a killed process made every later run print Taichi's lock
-    warnings on stderr (whose error output is one line, tests/test_bad_input.py)."""
+    warnings on stderr (whose error output is one line, tests/test_bad_input.py).
+    taichi-forge's locks are flock(2)s on files that stay: never removed, old or not."""
     import os
 
-    from taimill.physics.ti import STALE_LOCK_SECONDS, clear_stale_cache_lock
-
-    lock = tmp_path / "ticache.lock"
+    impl = next(i for i in door.IMPLEMENTATIONS if i.name == implementation)
+    monkeypatch.setattr(door, "IMPLEMENTATION", impl)
+    lock = tmp_path / (impl.stale_lock or "ticache_x64_s91.lock")
     lock.touch()
     t = os.stat(lock).st_mtime
-    assert not clear_stale_cache_lock(tmp_path, now=t + 1.0) and lock.exists()  # being used: kept
-    assert clear_stale_cache_lock(tmp_path, now=t + STALE_LOCK_SECONDS + 1.0) and not lock.exists()
-    assert not clear_stale_cache_lock(tmp_path)  # none left: nothing to do
+    assert not door.clear_stale_cache_lock(tmp_path, now=t + 1.0) and lock.exists()  # being used: kept
+    old = door.clear_stale_cache_lock(tmp_path, now=t + door.STALE_LOCK_SECONDS + 1.0)
+    assert (old, lock.exists()) == ((True, False) if impl.stale_lock else (False, True))
+    assert not door.clear_stale_cache_lock(tmp_path)  # none left (or not ours to remove): nothing to do
 
 
 _TINY_TAICHI_PROGRAM = """
@@ -161,34 +170,79 @@ def _tiny_taichi_run(cache_dir, **env):
     return subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=300)
 
 
+@contextlib.contextmanager
+def _held_cache_lock(cache_dir):
+    """The offline cache's lock as another process holds it, in the implementation in
+    use's way: taichi's a fresh lock file; taichi-forge's an flock(2) on its lock file
+    (which a first run creates). Yields the lock file's name."""
+    import fcntl
+
+    if door.IMPLEMENTATION.stale_lock:
+        (cache_dir / door.IMPLEMENTATION.stale_lock).touch()
+        yield door.IMPLEMENTATION.stale_lock
+        return
+    assert _tiny_taichi_run(cache_dir).returncode == 0
+    lock = next(cache_dir.glob("ticache*.lock"))
+    with open(lock, "a") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        yield lock.name
+
+
 def test_a_held_taichi_cache_lock_leaves_stderr_clean(tmp_path):
     """A lock another process holds (sweep workers starting together, or a run killed
     minutes ago) made Taichi print warnings on stderr, which breaks taimill's one-line
     error messages (CI failed on it): Taichi's warnings are hidden unless
     TAIMILL_TI_LOG=warn asks for them. The cache folder's lock file is where Taichi
-    looks for it: with TAIMILL_TI_LOG=warn the warning does appear."""
-    (tmp_path / "ticache.lock").touch()  # fresh: held by someone else
-    quiet = _tiny_taichi_run(tmp_path)
-    assert quiet.returncode == 0 and quiet.stdout.strip() == "3.0", quiet.stderr
-    assert quiet.stderr.strip() == "", quiet.stderr
-    loud = _tiny_taichi_run(tmp_path, TAIMILL_TI_LOG="warn")
-    assert loud.returncode == 0 and "ticache.lock" in loud.stderr, loud.stderr
+    looks for it: with TAIMILL_TI_LOG=warn the warning does appear. On both Taichis."""
+    with _held_cache_lock(tmp_path) as lock:
+        quiet = _tiny_taichi_run(tmp_path)
+        assert quiet.returncode == 0 and quiet.stdout.strip() == "3.0", quiet.stderr
+        assert quiet.stderr.strip() == "", quiet.stderr
+        loud = _tiny_taichi_run(tmp_path, TAIMILL_TI_LOG="warn")
+        assert loud.returncode == 0 and lock in loud.stderr, loud.stderr
 
 
 def test_init_taichi_removes_an_old_lock_in_the_cache_folder_it_uses(tmp_path):
     """TI_OFFLINE_CACHE_FILE_PATH names the folder holding the lock (not its parent):
-    an hour-old lock there is removed and the cache is written again."""
+    an hour-old lock there is removed and the cache is written again. taichi-forge's
+    lock file is kept (an flock, which no dead process holds) and its cache written."""
     import os
     import time
 
-    lock = tmp_path / "ticache.lock"
+    lock = tmp_path / (door.IMPLEMENTATION.stale_lock or "ticache_x64_s91.lock")
     lock.touch()
     old = time.time() - 3600
     os.utime(lock, (old, old))
     res = _tiny_taichi_run(tmp_path)
     assert res.returncode == 0, res.stderr
-    assert (tmp_path / "ticache.tcb").exists()  # Taichi could take the lock and write its cache
-    assert not lock.exists()
+    assert list(tmp_path.glob("ticache*.tcb"))  # Taichi could take the lock and write its cache
+    assert lock.exists() != bool(door.IMPLEMENTATION.stale_lock)
+
+
+def test_the_door_passes_taichis_variables_and_settings_through(tmp_path):
+    """What taimill sets for Taichi reaches the implementation in use: the cache folder
+    (TI_OFFLINE_CACHE_FILE_PATH), the thread count (TI_CPU_MAX_NUM_THREADS, as
+    init_taichi(threads) sets it), the cache size, f64 and the compile settings."""
+    script = tmp_path / "settings.py"
+    script.write_text(
+        "import json\nfrom taimill.physics import ti as door\ndoor.init_taichi(threads=1)\n"
+        "cfg = door.internal('lang.impl').current_cfg()\nx = door.ti.field(door.ti.f64, shape=2)\n"
+        "@door.ti.kernel\ndef fill():\n    for i in x:\n        x[i] = 1.0 / 3.0\nfill()\n"
+        "print(json.dumps(dict(name=door.IMPLEMENTATION.name, threads=cfg.cpu_max_num_threads, "
+        "cache=cfg.offline_cache_file_path, size=cfg.offline_cache_max_size_of_files, cfg_opt=cfg.cfg_optimization, "
+        "fast_math=cfg.fast_math, x=float(x.to_numpy()[0]), **{k: getattr(cfg, k) for k, _ in door.IMPLEMENTATION.init_options "
+        "if hasattr(cfg, k)})))\n")
+    cache = tmp_path / "cache"
+    env = {k: v for k, v in os.environ.items() if k != "TI_CPU_MAX_NUM_THREADS"}
+    res = subprocess.run([sys.executable, str(script)], env={**env, "TI_OFFLINE_CACHE_FILE_PATH": str(cache)},
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0 and res.stderr.strip() == "", res.stderr
+    got = json.loads(res.stdout)
+    assert got["name"] == door.IMPLEMENTATION.name
+    assert (got["threads"], got["cache"], got["size"]) == (1, str(cache), door.OFFLINE_CACHE_BYTES)
+    assert (got["cfg_opt"], got["fast_math"], got["x"]) == (door.CFG_OPTIMIZATION, False, 1.0 / 3.0)  # f64: 1/3 exactly
+    assert all(got[k] == v for k, v in door.IMPLEMENTATION.init_options if k in got)
+    assert list(cache.glob("ticache*.tcb"))
 
 
 def test_drained_frames_are_reused_only_when_nothing_else_holds_them(tmp_path):

@@ -167,8 +167,11 @@ def test_taichi_source_positions_are_formatted_once_per_place_with_taichis_own_t
                 continue
             start = min([top.lineno] + [d.lineno for d in top.decorator_list])
             src = lines[start - 1:top.end_lineno]
-            ctx = types.SimpleNamespace(file=mod.__file__, src=src, indent=0, lineno_offset=start - 1,
-                                        func=types.SimpleNamespace(func=types.SimpleNamespace(__name__=top.name)))
+            # a context of Taichi's own class with what get_pos_info reads (taichi-forge
+            # also keeps a per-context excerpt cache of its own)
+            ctx = object.__new__(utils.ASTTransformerContext)
+            ctx.__dict__.update(file=mod.__file__, src=src, indent=0, lineno_offset=start - 1, _source_info_cache={},
+                                func=types.SimpleNamespace(func=types.SimpleNamespace(__name__=top.name)))
             for node in ast.walk(ast.parse("\n".join(src))):
                 if isinstance(node, (ast.stmt, ast.expr)):
                     want = memo.original(ctx, node)

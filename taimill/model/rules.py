@@ -189,6 +189,13 @@ def frame_every(rate: float, dt: float) -> int:
     return max(1, int(round(1.0 / (rate * dt))))
 
 
+def frame_intervals(rate: float, dt: float, duration: float) -> int:
+    """Frame intervals of a run of `duration` (s) at `rate` (Hz) and time step dt (s):
+    a run lasts whole frame intervals, the nearest whole number and at least one, with
+    a frame at both ends (frames_fit keeps the stretch within a step of the duration)."""
+    return max(1, int(round(duration / (frame_every(rate, dt) * dt))))
+
+
 def frames_fit(rate_source, duration_source, rate: float, dt: float, duration: float, blame_duration: bool):
     """The trajectory rate (Hz) and the duration (s) together: at least one frame in the
     run (a run lasts whole frame intervals: a shorter one would be stretched to one) and at
@@ -196,7 +203,7 @@ def frames_fit(rate_source, duration_source, rate: float, dt: float, duration: f
     blame_duration: the duration was given last (the command line), so it is the value named."""
     hi = min(MAX_RATE, 0.5 / dt, MAX_FRAMES / duration)
     interval = frame_every(rate, dt) * dt
-    # a run lasts whole frame intervals (spec.from_preset): one more than a time step
+    # a run lasts whole frame intervals (frame_intervals): one more than a time step
     # longer than the run would stretch it (a 0.3 s run at 1 Hz would run 1 s); the
     # rounding of the interval to whole steps stretches it by half a step at most
     short = interval > duration + dt * (1 + 1e-9)

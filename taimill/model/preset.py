@@ -148,12 +148,13 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
     bt = t.table("balls", known=BALLS_KEYS)
     ball = material_data(bt.get("material", kind=str), bt.where("material"), "balls.material")
     size_key = _size_key(bt)
-    size = bt.get(size_key, lo=0, lo_open=True, hi=(0.5e3 if size_key == "radius_mm" else 1e3) * min(jar.radius, jar.height))
+    size = bt.get(size_key, lo=0, lo_open=True)
     radius = (size if size_key == "radius_mm" else size / 2.0) * 1e-3
+    rules.ball_fits_jar(bt.where(size_key), f"balls.{size_key}", size, radius, jar)
     count, count_key, notes = charge.ball_count(bt, jar, radius)
     balls = Balls(count, ball.material, radius)
     bt.done()
-    _check_fill(balls, jar, bt.where(count_key), bt.where(size_key), placed=t.has("initial_positions"), size_key=size_key)
+    _check_fill(balls, jar, bt.where(count_key), placed=t.has("initial_positions"))
     warnings += ball.estimate_notes(("density_kg_m3", "youngs_modulus_gpa", "poisson"), "ball material")
     warnings += wall.estimate_notes(("youngs_modulus_gpa", "poisson"), "wall material")
     pt = t.table("powder", required=False, known=POWDER_KEYS)
@@ -321,19 +322,10 @@ def _kind_friction(t: Table, kind: str, friction: Friction, contact: str | None,
     return friction
 
 
-def _check_fill(balls: Balls, jar: Jar, source, radius_source, placed=False, size_key="radius_mm"):
+def _check_fill(balls: Balls, jar: Jar, source, placed=False):
     """Random loose packing reaches ~0.55; refuse fills that cannot be placed at random
-    (given positions are checked ball by ball instead: a settled bed is denser). A ball
-    larger than the fillets would touch both walls of a corner while the side-wall
-    SDF reports only the nearer: refuse it."""
+    (given positions are checked ball by ball instead: a settled bed is denser)."""
     fill = balls.count * 4.0 / 3.0 * math.pi * balls.radius**3 / jar.volume
     if fill > charge.MAX_RANDOM_FILL and not placed:
         raise ConfigError(source, "balls.count", balls.count,
                           f"balls fill {fill:.0%} of the jar; at most {charge.MAX_RANDOM_FILL:.0%} can be placed at random")
-    scale = 2.0 if size_key == "diameter_mm" else 1.0  # the size as it was given
-    if 2 * balls.radius >= jar.height or balls.radius >= jar.radius:
-        raise ConfigError(radius_source, f"balls.{size_key}", scale * balls.radius * 1e3, "balls must fit in the jar")
-    if len(jar.profile.pieces) > 1 and balls.radius > jar.fillet:
-        raise ConfigError(radius_source, f"balls.{size_key}", scale * balls.radius * 1e3,
-                          f"allowed range (0, {scale * jar.fillet * 1e3:g}]: jar {jar.name}'s corners are rounded to "
-                          f"{jar.fillet * 1e3:g} mm")

@@ -238,6 +238,30 @@ def plate_fits_jar(source, plate_radius: float, jar):
                           f"{jar.name} (radius {jar.radius * 1e3:.4g} mm)")
 
 
+def ball_fits_jar(source, key: str, size: float, radius: float, jar):
+    """Balls of `radius` (m) fit in `jar`: their diameter at most the jar's (bounding)
+    radius and below its height (a ball as tall as the jar would touch floor and lid at
+    once), and their radius at most the fillet of its corners (ball_fits_corners).
+    key, size: the balls' size as given (balls.radius_mm or balls.diameter_mm, mm)."""
+    per_m = 1e3 if key.endswith("diameter_mm") else 0.5e3  # the largest size in mm, per m of min(R, H)
+    largest = per_m * min(jar.radius, jar.height)
+    if not (size <= largest and 2 * radius < jar.height):
+        raise ConfigError(source, key, size, f"allowed range (0, {largest:g}{')' if jar.height <= jar.radius else ']'} mm: "
+                          f"balls must fit in the jar {jar.name} (radius {jar.radius * 1e3:.4g} mm, height "
+                          f"{jar.height * 1e3:.4g} mm)")
+    if not ball_fits_corners(radius, jar):
+        raise ConfigError(source, key, size, f"allowed range (0, {per_m * 2 * jar.fillet:g}] mm: jar {jar.name}'s "
+                          f"corners are rounded to {jar.fillet * 1e3:g} mm")
+
+
+def ball_fits_corners(radius: float, jar) -> bool:
+    """A ball of `radius` (m) touches each corner of the jar's profile at one point: the
+    corners' fillet is at least its radius (a plain circle has no corner). A larger ball
+    would touch both walls of a corner while the side wall's distance names only the
+    nearer one."""
+    return len(jar.profile.pieces) == 1 or radius <= jar.fillet
+
+
 def ball_size_note(radius: float, measured: float | None, contact: str) -> str | None:
     """A line if the balls' radius (m) is more than BALL_SIZE_FACTOR times off the radius
     `measured` (m) its contact set was measured or fitted for: its stiffness follows the

@@ -206,7 +206,7 @@ def load_preset(path, overrides: dict | None = None) -> Preset:
         if given is None and mill.gear.kind == "set":
             rules.gear_ratio(source, None, None, mill)
         jar_speed = t.get(jar_key, **RANGES[jar_key].bounds)
-    plate_radius_mm = t.get("plate_radius_mm", None, lo=0, lo_open=True, hi=2000)
+    plate_radius_mm = t.get("plate_radius_mm", None, **RANGES["plate_radius_mm"].bounds)
     plate_radius = mill.plate_radius if plate_radius_mm is None else plate_radius_mm * 1e-3
     rules.plate_fits_jar(t.where("plate_radius_mm"), plate_radius, jar)
 

@@ -233,9 +233,10 @@ def plate_fits_jar(source, plate_radius: float, jar):
     """The jar's axis is carried at R_p (m) from the plate's: a plate radius below the
     jar's own (a slip of units, 0.07 for 70 mm) puts the plate's axis inside the jar."""
     if plate_radius <= jar.radius:
+        r = RANGES["plate_radius_mm"]
         raise ConfigError(source, "plate_radius_mm", plate_radius * 1e3,
-                          f"allowed range ({jar.radius * 1e3:.4g}, 2000] mm: the jar's axis must lie outside the jar "
-                          f"{jar.name} (radius {jar.radius * 1e3:.4g} mm)")
+                          f"allowed range ({jar.radius * 1e3:.4g}, {r.hi:g}] {r.unit}: the jar's axis must lie outside "
+                          f"the jar {jar.name} (radius {jar.radius * 1e3:.4g} mm)")
 
 
 def ball_fits_jar(source, key: str, size: float, radius: float, jar):

@@ -42,11 +42,14 @@ def speeds(t: Table, mill: Mill, warnings: list) -> tuple[float, str, float]:
 
 
 def plate_radius(t: Table, mill: Mill, jar: Jar) -> tuple[float, bool]:
-    """(R_p in m: the preset's plate_radius_mm, else the mill's; whether it is the mill's)."""
+    """(R_p in m: the preset's plate_radius_mm, else the mill's; whether it is the mill's).
+    A radius too small for the jar is blamed on the file that gave it."""
     given = t.get("plate_radius_mm", None, **RANGES["plate_radius_mm"].bounds)
-    radius = mill.plate_radius if given is None else given * 1e-3
-    rules.plate_fits_jar(t.where("plate_radius_mm"), radius, jar)
-    return radius, given is None
+    if given is None:
+        rules.plate_fits_jar(mill.source, mill.plate_radius, jar)
+        return mill.plate_radius, True
+    rules.plate_fits_jar(t.where("plate_radius_mm"), given * 1e-3, jar)
+    return given * 1e-3, False
 
 
 def drive(t: Table, mill: Mill, plate_rpm: float, jar_key: str, jar_speed: float, ramp_time: float) -> Drive:

@@ -182,3 +182,24 @@ def test_auto_dt_keeps_explicit_damping_stable():
     # the thesis' own contact is far from the bound: the contact time sets its step
     t_c, dt_bb = laws_np.contact_dt(bb.model, bb.k, bb.c, bb.d, bb.m_eff, speeds)
     assert dt_bb == t_c / laws_np.STEPS_PER_CONTACT
+
+
+def test_the_time_step_follows_the_rolling_sub_model_in_use(monkeypatch):
+    # Each contact kind's rolling sub-model bounds the step, not the default one: a
+    # registered model whose explicit integration needs 1 ns steps sets the automatic
+    # step wherever a friction uses it (the default constant torque has no bound).
+    import dataclasses
+    import math
+
+    from taimill.model import rules
+
+    stiff = dataclasses.replace(registry.ROLLING["epsd2"], name="stiff", dt_limit=lambda inertia, mu_r, r_eff, f_n: 1e-9)
+    monkeypatch.setitem(registry.ROLLING, "stiff", stiff)
+    p = load_preset("presets/p4-cy-steel.toml")
+    default = dataclasses.replace(p.friction, mu_r=0.1)
+    own = dataclasses.replace(default, rolling="stiff")
+    assert laws_np.rolling_dt((default, default), p.balls.inertia, p.balls.radius, math.inf) == math.inf
+    for frictions in ((default, own), (own, default)):
+        assert laws_np.rolling_dt(frictions, p.balls.inertia, p.balls.radius, math.inf) == 1e-9
+        assert rules.auto_dt(p.ball_ball, p.ball_wall, frictions, p.balls, 10.0) == 1e-9
+    assert rules.auto_dt(p.ball_ball, p.ball_wall, (default, dataclasses.replace(own, mu_r=0.0)), p.balls, 10.0) > 1e-8

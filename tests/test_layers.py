@@ -277,13 +277,61 @@ def time_step_calls(path: Path) -> list[tuple[str, int]]:
             and not (isinstance(node.func.value, ast.Name) and node.func.value.id == "rules")]
 
 
+def _name(node) -> str:
+    """The name a Name or an Attribute ends in; '' for any other node."""
+    return node.id if isinstance(node, ast.Name) else node.attr if isinstance(node, ast.Attribute) else ""
+
+
+def _quotient_by_product(node) -> bool:
+    """a / (b * c), whatever a, b and c are."""
+    return (isinstance(node, ast.BinOp) and isinstance(node.op, ast.Div)
+            and isinstance(node.right, ast.BinOp) and isinstance(node.right.op, ast.Mult))
+
+
+def _frame_interval(node) -> bool:
+    """The frame-interval arithmetic: round(a / (b * c)), a time in whole steps or whole
+    frame intervals, or 1 / (rate * dt), the steps between frames."""
+    if isinstance(node, ast.Call) and _name(node.func) == "round" and node.args and _quotient_by_product(node.args[0]):
+        return True
+    if not (_quotient_by_product(node) and isinstance(node.left, ast.Constant) and node.left.value == 1):
+        return False
+    factors = {_name(node.right.left), _name(node.right.right)}
+    return "dt" in factors and any("rate" in f for f in factors)
+
+
+def _fillet_fit(node) -> bool:
+    """A radius compared with a fillet: whether a ball fits the jar's corners."""
+    names = [_name(n) for n in ast.walk(node)] if isinstance(node, ast.Compare) else []
+    return any("fillet" in n for n in names) and any("radius" in n for n in names)
+
+
+# Computations of the rule book's rules by their shape in the syntax tree, whatever the
+# names and spacing: a computation made again drifts from the rule book's as a restated
+# message does. rule -> a test of one node.
+RULE_SHAPES = {
+    "the frame-interval rule (rules.frame_every, rules.frame_intervals)": _frame_interval,
+    "the ball-fits-the-fillet rule (rules.ball_fits_corners)": _fillet_fit,
+}
+
+
+def computed_rules(path: Path) -> list[tuple[str, int]]:
+    """(rule, line) of each computation of a rule of RULE_SHAPES in a file, once per line."""
+    tree = ast.parse(path.read_text())
+    return sorted({(rule, node.lineno) for node in ast.walk(tree) for rule, shape in RULE_SHAPES.items() if shape(node)},
+                  key=lambda found: found[1])
+
+
 def restated_rules(root: Path) -> list[str]:
     """Rules of the rule book stated again elsewhere: a ConfigError with one of its
-    phrases, or a time step computed from the laws' parts."""
+    phrases, a computation of the shape of one of its rules, or a time step computed
+    from the laws' parts (which the laws themselves combine)."""
     found = []
     for path in sorted(root.rglob("*.py")):
         mod = module_name(path, root)
-        if mod in (RULE_BOOK, "taimill.model.laws"):
+        if mod == RULE_BOOK:
+            continue
+        found += [f"{mod}:{line} computes {rule} of {RULE_BOOK}" for rule, line in computed_rules(path)]
+        if mod == "taimill.model.laws":
             continue
         found += [f"{mod}:{line} states a rule of {RULE_BOOK} ('{phrase}')"
                   for text, line in config_error_texts(path) for phrase in RULE_PHRASES if phrase in text]
@@ -348,6 +396,24 @@ def test_a_planted_taichi_import_is_named(tmp_path, file, line):
     n = len(target.read_text().splitlines()) + 1
     target.write_text(target.read_text() + line + "\n")
     assert any(v.startswith(f"{file}:{n} imports taichi") for v in outside_the_door(repo)), outside_the_door(repo)
+
+
+@pytest.mark.parametrize("file, line, rule", [
+    ("runs/live.py", "every = max(1, int(round(1.0 / (rate * dt))))", "frame-interval"),
+    ("store/run.py", "frames = round(config['duration'] / (steps * step)) + 1", "frame-interval"),
+    ("tui/app.py", "per_frame = 1 / (self.trajectory_rate*self.dt)", "frame-interval"),
+    ("design/constraints.py", "fits = jar.fillet >= limits.ball_radius - 1e-12", "ball-fits-the-fillet"),
+])
+def test_a_restated_computation_is_named(tmp_path, file, line, rule):
+    # a second statement of a rule's arithmetic, found by its shape whatever its names
+    root = tmp_path / "taimill"
+    shutil.copytree(PACKAGE, root, ignore=shutil.ignore_patterns("__pycache__"))
+    target = root / file
+    n = len(target.read_text().splitlines()) + 1
+    target.write_text(target.read_text() + line + "\n")
+    mod = module_name(target, root)
+    assert [v for v in restated_rules(root) if v.startswith(f"{mod}:")] == [
+        next(f"{mod}:{n} computes {r} of {RULE_BOOK}" for r in RULE_SHAPES if rule in r)]
 
 
 NUMPY_ONLY_TESTS = ("test_analysis", "test_store", "test_cli", "test_layers", "test_golden")

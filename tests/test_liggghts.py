@@ -8,6 +8,7 @@ comparison (12 balls, 5 s) is `-m full` and scripts/liggghts_compare.py.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import shutil
 import subprocess
@@ -22,6 +23,7 @@ from taimill.bridge.contact_map import contact_mapping
 from taimill.bridge.liggghts import export_case
 from taimill.bridge.mesh import TOLERANCE, jar_mesh, read_stl
 from taimill.errors import ConfigError
+from taimill.model.contact import registry
 from taimill.model.jars import jar_names, load_jar
 from taimill.model.preset import load_preset
 from taimill.model.spec import from_preset
@@ -232,6 +234,41 @@ def test_each_contact_kind_is_written_with_its_own_sub_models(tmp_path):
                                                                  "friction_ball_wall.mu_r": 0.02}))
     if LIGGGHTS:  # the mixed deck is valid LIGGGHTS (~0.005 s of the mill)
         run_liggghts(tmp_path / "c")
+
+
+def _running(kind: str, name: str, like: str):
+    """The CY steel preset with the sub-model `name` of `kind` on both contact kinds;
+    like: the registered sub-model whose coefficients the preset gets (`name` itself, or
+    the one a planted sub-model copies)."""
+    if kind == "normal":
+        p = load_preset("presets/p4-cy-steel.toml", {"law": like})
+        return dataclasses.replace(p, ball_ball=dataclasses.replace(p.ball_ball, law=name),
+                                   ball_wall=dataclasses.replace(p.ball_wall, law=name))
+    p = load_preset("presets/p4-cy-steel.toml")
+    given = {"tangential": {"tangential": name}, "rolling": {"rolling": name, "mu_r": 0.05}}[kind]
+    return dataclasses.replace(p, friction=dataclasses.replace(p.friction, **given))
+
+
+@pytest.mark.parametrize("kind, table", [("normal", registry.LAWS), ("tangential", registry.TANGENTIAL),
+                                         ("rolling", registry.ROLLING)])
+def test_every_registered_sub_model_is_exported_or_refused_in_one_line(kind, table, monkeypatch):
+    # every sub-model registered for runs, and a planted copy of one as a new sub-model
+    # would be, is written for LIGGGHTS or refused in one ConfigError line: never a
+    # KeyError from a model without a row in the export's tables (the springs and
+    # dampings are exported through the normal laws that compose them)
+    first = next(iter(table))
+    monkeypatch.setitem(table, "planted", dataclasses.replace(table[first], name="planted"))
+    for name in table:
+        p = _running(kind, name, first if name == "planted" else name)
+        for strict in (False, True):
+            try:
+                contact_mapping(p, strict=strict)
+            except ConfigError as e:
+                assert "\n" not in str(e), (name, strict, str(e))
+    if kind != "normal":  # a normal law without an exact counterpart is approximated or refused by name
+        with pytest.raises(ConfigError, match=rf"friction\.{kind} = 'planted': has no LIGGGHTS export; the export "
+                                              rf"writes {kind} = .*, .*"):
+            contact_mapping(_running(kind, "planted", first))
 
 
 @needs_liggghts

@@ -171,7 +171,10 @@ def test_a_users_mill_file_relative_to_the_preset_and_strictly_read(tmp_path):
     for bad, words in ((good.replace("stations = 2", "stations = 2\nstaions = 3"), "unknown key 'staions'"),
                        (good.replace('plate_radius_mm = "measured with a ruler"\n', ""), "plate_radius_mm = 100: has no origin"),
                        (good + 'foo = "bar"\n', "estimates.foo"),
-                       (good.replace("plate_radius_mm = 100", "plate_radius_mm = 1000"), "allowed range [30, 400]"),
+                       (good.replace("plate_radius_mm = 100", "plate_radius_mm = 3000"), "allowed range (0, 2000]"),
+                       # a slip of units (m for mm) is refused with the jar, naming the mill file
+                       (good.replace("plate_radius_mm = 100", "plate_radius_mm = 0.1"),
+                        "mine.toml: plate_radius_mm = 0.1: allowed range (32.5, 2000] mm"),
                        (good.replace('gear = "free"', 'gear = "fixed"'), "ratio_min = -3: not used by gear = \"fixed\"")):
         mill.write_text(bad)
         with pytest.raises(ConfigError) as err:

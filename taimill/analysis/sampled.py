@@ -26,7 +26,7 @@ class SampledStats:
 
     def __init__(self, g: RunGeometry, radii, stored_rate: float, rate: float = 100.0,
                  t0: float = 0.0, t1: float = math.inf, source: str = "command line"):
-        if not 0 < rate <= stored_rate * 1.01:  # stored frames are every round(1/(rate dt)) steps
+        if not 0 < rate <= stored_rate * 1.01:  # the stored rate, rounded to whole steps (rules.frame_every)
             raise ConfigError(source, "--sampling-rate", rate,
                               f"(0, {stored_rate:g}] per s: the run stored frames at {stored_rate:g} per s")
         self.g, self.radii, self.rate = g, np.asarray(radii, float), rate

@@ -16,7 +16,7 @@ from taimill.errors import ConfigError
 from taimill.model import laws as laws_np
 from taimill.model.contact import rolling, rolling_epsd2, tangential, tangential_history
 from taimill.model.contact.damping import damping_ratio
-from taimill.model.contact.registry import ROLLING, TANGENTIAL, law_by_name
+from taimill.model.contact.registry import law_by_name
 from taimill.model.preset import Preset
 
 
@@ -190,6 +190,16 @@ def _key(preset: Preset, kind: str, name: str) -> str:
     return f"friction.{name}" if preset.wall_friction is None else f"friction_{kind}.{name}"
 
 
+def _export_of(table: dict, preset: Preset, kind: str, key: str, name: str):
+    """The row of sub-model `name` in an export table (TANGENTIAL_EXPORT, ROLLING_EXPORT;
+    key: its preset key, "tangential" or "rolling"). A registered sub-model without a row
+    is refused in one line: a sub-model is registered for runs before it has an export."""
+    if name not in table:
+        raise ConfigError(preset.source, _key(preset, kind, key), name,
+                          f"has no LIGGGHTS export; the export writes {key} = {', '.join(table)}")
+    return table[name]
+
+
 def _tangential(preset: Preset, strict: bool) -> tuple[dict, dict, dict, list, list]:
     """(μ, LIGGGHTS model, its settings; each per kind, notes, warnings) of the
     tangential sub-models (TANGENTIAL_EXPORT):
@@ -201,7 +211,7 @@ def _tangential(preset: Preset, strict: bool) -> tuple[dict, dict, dict, list, l
     fbb, fbw = preset.frictions
     same = (fbb.tangential, fbb.mu_s, fbb.mu_d) == (fbw.tangential, fbw.mu_s, fbw.mu_d)
     for kind, f in zip(("ball_ball", "ball_wall"), preset.frictions):
-        t = TANGENTIAL_EXPORT[TANGENTIAL[f.tangential].name]
+        t = _export_of(TANGENTIAL_EXPORT, preset, kind, "tangential", f.tangential)
         mu[kind], models[kind], settings[kind] = f.mu_d, t.keyword, list(t.settings)
         where = "" if same else f" ({kind.replace('_', '-')})"
         stiction = t.stiction and f.mu_s != f.mu_d
@@ -230,7 +240,7 @@ def _rolling(preset: Preset, strict: bool) -> tuple[dict, dict, list, list]:
     for kind, f in zip(("ball_ball", "ball_wall"), preset.frictions):
         if f.mu_r == 0:
             continue
-        r = ROLLING_EXPORT[ROLLING[f.rolling].name]
+        r = _export_of(ROLLING_EXPORT, preset, kind, "rolling", f.rolling)
         how = getattr(r, kind)
         text = r.text[kind].format(mu_r=f.mu_r)
         if how == "refused" or (how == "approximate" and strict):

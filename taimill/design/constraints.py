@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from taimill.model import geometry
+from taimill.model import geometry, rules
 
 GRID_MM = 0.2  #: sampling step (mm) of the insert-thickness measure
 
@@ -45,7 +45,7 @@ def violations(jar, limits: Limits) -> list[str]:
         out.append(f"volume = {jar.volume * 1e6:.4g} ml ({ratio:.1%} of the nominal {limits.volume * 1e6:.4g} ml): "
                    f"allowed range [{(1 - limits.tolerance) * limits.volume * 1e6:.4g}, "
                    f"{(1 + limits.tolerance) * limits.volume * 1e6:.4g}] ml")
-    if len(jar.profile.pieces) > 1 and jar.fillet < limits.ball_radius - 1e-12:
+    if not rules.ball_fits_corners(limits.ball_radius, jar):
         out.append(f"fillet_mm = {jar.fillet * 1e3:g}: must be ≥ the ball radius {limits.ball_radius * 1e3:g} mm")
     thin = thinnest_insert(jar.profile, circle)
     if thin is not None and thin < limits.min_wall:

@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from taimill.model.contact.model import NormalModel
-from taimill.model.contact.registry import ROLLING, DEFAULT_ROLLING
+from taimill.model.contact.registry import ROLLING
 
 # Contact resolution of the automatic time step: steps per contact at the fastest
 # expected impact (typical impacts, 10x slower, get ~1.6x more). Measured on the CY
@@ -30,9 +30,11 @@ from taimill.model.contact.registry import ROLLING, DEFAULT_ROLLING
 STEPS_PER_CONTACT = 24
 
 
-def rolling_dt(frictions, inertia, r_eff, f_n_max, rolling=DEFAULT_ROLLING):
-    """Time-step bound (s) of the rolling model over the frictions in use (inf if off)."""
-    return min((ROLLING[rolling].dt_limit(inertia, f.mu_r, r_eff, f_n_max) for f in frictions if f.mu_r > 0), default=math.inf)
+def rolling_dt(frictions, inertia, r_eff, f_n_max):
+    """Time-step bound (s) of the frictions in use (`Friction`), each by its own rolling
+    sub-model (inf where μ_r = 0: off)."""
+    return min((ROLLING[f.rolling].dt_limit(inertia, f.mu_r, r_eff, f_n_max) for f in frictions if f.mu_r > 0),
+               default=math.inf)
 
 
 # ------------------------------------------------------------------ impacts

@@ -157,7 +157,7 @@ def load_mill(name_or_path: str = DEFAULT, source="preset", base: Path | None = 
     t = Table(data, path, known=MILL_KEYS)
     maker, model = t.get("maker", kind=str), t.get("model", kind=str)
     desc = t.get("description", "", kind=str)
-    radius = t.get("plate_radius_mm", lo=30, hi=400) * 1e-3
+    radius = t.get("plate_radius_mm", **RANGES["plate_radius_mm"].bounds) * 1e-3
     gear = _gear(t)
     lo = t.get("plate_rpm_min", None, lo=0, lo_open=True, hi=5000)
     hi = t.get("plate_rpm_max", None, lo=0, lo_open=True, hi=5000)

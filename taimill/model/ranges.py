@@ -51,4 +51,10 @@ RANGES: dict[str, Range] = {
     "mu_d": Range(0, 10),
     "mu_r": Range(0, 10),
     "balls.count": Range(1, 1_000_000, live=(1, 2000)),
+    # R_p of a mill file and of a preset (which overrides the mill's for sensitivity
+    # studies): up to 2000 mm admits every shipped mill (60.8-150 mm) and the
+    # all-but-resting plate of scripts/bench.py (2000 mm). The lower bound that matters
+    # is the jar's radius (rules.plate_fits_jar), which also catches a slip of units
+    # (0.07 for 70 mm) with its reason.
+    "plate_radius_mm": Range(0, 2000, "mm", lo_open=True),
 }

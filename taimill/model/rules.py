@@ -189,6 +189,13 @@ def frame_every(rate: float, dt: float) -> int:
     return max(1, int(round(1.0 / (rate * dt))))
 
 
+def frame_intervals(rate: float, dt: float, duration: float) -> int:
+    """Frame intervals of a run of `duration` (s) at `rate` (Hz) and time step dt (s):
+    a run lasts whole frame intervals, the nearest whole number and at least one, with
+    a frame at both ends (frames_fit keeps the stretch within a step of the duration)."""
+    return max(1, int(round(duration / (frame_every(rate, dt) * dt))))
+
+
 def frames_fit(rate_source, duration_source, rate: float, dt: float, duration: float, blame_duration: bool):
     """The trajectory rate (Hz) and the duration (s) together: at least one frame in the
     run (a run lasts whole frame intervals: a shorter one would be stretched to one) and at
@@ -196,7 +203,7 @@ def frames_fit(rate_source, duration_source, rate: float, dt: float, duration: f
     blame_duration: the duration was given last (the command line), so it is the value named."""
     hi = min(MAX_RATE, 0.5 / dt, MAX_FRAMES / duration)
     interval = frame_every(rate, dt) * dt
-    # a run lasts whole frame intervals (spec.from_preset): one more than a time step
+    # a run lasts whole frame intervals (frame_intervals): one more than a time step
     # longer than the run would stretch it (a 0.3 s run at 1 Hz would run 1 s); the
     # rounding of the interval to whole steps stretches it by half a step at most
     short = interval > duration + dt * (1 + 1e-9)
@@ -226,9 +233,34 @@ def plate_fits_jar(source, plate_radius: float, jar):
     """The jar's axis is carried at R_p (m) from the plate's: a plate radius below the
     jar's own (a slip of units, 0.07 for 70 mm) puts the plate's axis inside the jar."""
     if plate_radius <= jar.radius:
+        r = RANGES["plate_radius_mm"]
         raise ConfigError(source, "plate_radius_mm", plate_radius * 1e3,
-                          f"allowed range ({jar.radius * 1e3:.4g}, 2000] mm: the jar's axis must lie outside the jar "
-                          f"{jar.name} (radius {jar.radius * 1e3:.4g} mm)")
+                          f"allowed range ({jar.radius * 1e3:.4g}, {r.hi:g}] {r.unit}: the jar's axis must lie outside "
+                          f"the jar {jar.name} (radius {jar.radius * 1e3:.4g} mm)")
+
+
+def ball_fits_jar(source, key: str, size: float, radius: float, jar):
+    """Balls of `radius` (m) fit in `jar`: their diameter at most the jar's (bounding)
+    radius and below its height (a ball as tall as the jar would touch floor and lid at
+    once), and their radius at most the fillet of its corners (ball_fits_corners).
+    key, size: the balls' size as given (balls.radius_mm or balls.diameter_mm, mm)."""
+    per_m = 1e3 if key.endswith("diameter_mm") else 0.5e3  # the largest size in mm, per m of min(R, H)
+    largest = per_m * min(jar.radius, jar.height)
+    if not (size <= largest and 2 * radius < jar.height):
+        raise ConfigError(source, key, size, f"allowed range (0, {largest:g}{')' if jar.height <= jar.radius else ']'} mm: "
+                          f"balls must fit in the jar {jar.name} (radius {jar.radius * 1e3:.4g} mm, height "
+                          f"{jar.height * 1e3:.4g} mm)")
+    if not ball_fits_corners(radius, jar):
+        raise ConfigError(source, key, size, f"allowed range (0, {per_m * 2 * jar.fillet:g}] mm: jar {jar.name}'s "
+                          f"corners are rounded to {jar.fillet * 1e3:g} mm")
+
+
+def ball_fits_corners(radius: float, jar) -> bool:
+    """A ball of `radius` (m) touches each corner of the jar's profile at one point: the
+    corners' fillet is at least its radius (a plain circle has no corner). A larger ball
+    would touch both walls of a corner while the side wall's distance names only the
+    nearer one."""
+    return len(jar.profile.pieces) == 1 or radius <= jar.fillet
 
 
 def ball_size_note(radius: float, measured: float | None, contact: str) -> str | None:

@@ -78,7 +78,7 @@ def from_preset(p: Preset, duration: float | None = None) -> MillSpec:
     if x0 is None:
         x0 = random_placement(n, p.balls.radius, p.jar.profile, p.jar.height, p.seed, p.source)
     every = rules.frame_every(p.trajectory_rate, p.dt)
-    frames = max(1, int(round((duration if duration is not None else p.duration) / (every * p.dt))))
+    frames = rules.frame_intervals(p.trajectory_rate, p.dt, duration if duration is not None else p.duration)
     plate, jar = p.drive.start_up()
     return MillSpec(
         radius=np.full(n, p.balls.radius),

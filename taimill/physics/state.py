@@ -113,11 +113,29 @@ def default_models() -> tuple:
     return one, one
 
 
+# Field types of the groups below.
+f64, i32, i64 = ti.f64, ti.i32, ti.i64
+vec3 = ti.types.vector(3, f64)
+
+
 @ti.data_oriented
 class Fields:
     def __init__(self, batch: int, balls: int, event_capacity: int, frame_capacity: int, grid_cells: int,
                  pool: int | None = None, share_pairs: bool = False, reorder: bool = False, models=None):
-        B, N = batch, balls
+        self._compile_for(models, batch, share_pairs, reorder)
+        self._size(batch, balls, event_capacity, frame_capacity, grid_cells, pool)
+        self.model, self.state, self.contacts, self.spatial, self.out = (
+            MillModel(), MillState(), ContactBook(), Spatial(), Outputs())
+        # the fields in the order they were always made (their places in Taichi's tree)
+        self._mill_fields()
+        self._grid_fields()
+        self._ball_fields()
+        self._contact_fields()
+        self._spatial_fields()
+        self._output_fields()
+
+    def _compile_for(self, models, B: int, share_pairs: bool, reorder: bool):
+        """The contact models and modes the kernels are compiled for."""
         # the ContactModels the kernels are compiled for, per contact type (ball-ball,
         # ball-wall): compile-time constants of every kernel that takes these fields
         self.models = tuple(tuple(m) for m in (models or default_models()))
@@ -128,7 +146,6 @@ class Fields:
             raise ValueError("contact models with history run in fused mode only")
         if reorder and (B != 1 or share_pairs):
             raise ValueError("balls are stored in grid order only in parallel mode (one mill)")
-        P = pool_rows(N) if pool is None else pool
         # the balls' forces are computed one after another in index order (fused mode):
         # a pair's owner leaves the partner's force and torque (contacts.partner_share)
         self.share_pairs = share_pairs
@@ -136,6 +153,10 @@ class Fields:
         # every neighbour-list build (reorder.py); user_of maps a row to the ball's own
         # index, which every output and the contact ownership use
         self.reorder = reorder
+
+    def _size(self, B: int, N: int, event_capacity: int, frame_capacity: int, grid_cells: int, pool: int | None):
+        """The sizes of the fields: mills, balls, buffers, pool rows and grid cells."""
+        P = pool_rows(N) if pool is None else pool
         self.B, self.N, self.event_capacity, self.frame_capacity = B, N, event_capacity, frame_capacity
         self.pool_capacity = P
         # home rows per ball; at least a third of the pool stays shared, for the balls that
@@ -143,12 +164,11 @@ class Fields:
         self.home = min(HOME_ROWS, (P - P // 3) // N)
         self.spill_base = N * self.home  # rows [spill_base, P): the shared stack's
         self.grid_cells = grid_cells
-        f64, i32, i64 = ti.f64, ti.i32, ti.i64
-        vec3 = ti.types.vector(3, f64)
-        model, state, contacts, spatial, out = self.model, self.state, self.contacts, self.spatial, self.out = (
-            MillModel(), MillState(), ContactBook(), Spatial(), Outputs())
 
-        # ---- model, per mill [B]
+    def _mill_fields(self):
+        """The fixed parameters of each mill [B]: clock, drive, mechanism classes,
+        spectra, contact models and coefficients per contact type [B, 2], jar profile."""
+        B, model = self.B, self.model
         model.n_balls = ti.field(i32, B)
         model.dt = ti.field(f64, B)  #: s
         model.gravity = ti.field(f64, B)  #: m/s²
@@ -182,19 +202,24 @@ class Fields:
         model.n_pieces = ti.field(i32, B)
         model.piece = ti.Vector.field(PIECE_COLUMNS, f64, (B, MAX_PIECES))
         model.piece_bound = ti.Vector.field(3, f64, (B, MAX_PIECES))  #: m, geometry.piece_bounds rows
-        # uniform grid of the spatial hash [B]
+
+    def _grid_fields(self):
+        """The uniform grid of the spatial hash of each mill [B]."""
+        B, spatial = self.B, self.spatial
         spatial.grid_lo = ti.Vector.field(3, f64, B)  #: m, corner of the grid
         spatial.grid_h = ti.field(f64, B)  #: m, cell edge (≥ largest ball diameter)
         spatial.grid_dim = ti.Vector.field(3, i32, B)
         spatial.skin = ti.field(f64, B)  #: m, Verlet-list skin
 
-        # ---- per ball [B, N]
+    def _ball_fields(self):
+        """Of each ball [B, N]: its fixed parameters and what evolves, placed as the
+        mode reads them; of each mill [B] its step, status and drive trigonometry."""
+        B, N, model, state, reorder = self.B, self.N, self.model, self.state, self.reorder
         model.r = ti.field(f64)  #: m
         model.m = ti.field(f64)  #: kg
         model.inv_i = ti.field(f64)  #: 1/(kg m²)
         model.inv_m = ti.field(f64)  #: 1/kg
-
-        # ---- state [B, N], and per mill [B]
+        # state [B, N], and per mill [B]
         state.turn_trig = ti.Vector.field(3, f64, B)  #: (Δφ_jar, cos, sin) of the last step's turn (engine.drive)
         state.psi_rec = ti.Vector.field(3, f64, B)  #: (t, cos ψ, sin ψ) of the last step's drive (engine.psi_trig)
         state.psi_rot = ti.Vector.field(3, f64, B)  #: (δ, cos δ, sin δ), ψ's growth a step at constant speeds
@@ -211,29 +236,35 @@ class Fields:
         state.mech = ti.field(f64, (B, N, NMECH))  #: J, dissipation by mechanism, booked in the force pass
         state.elastic = ti.field(f64)  #: J, stored now in contacts this ball owns
         state.side_ref = ti.field(ti.types.vector(3, f64))  #: m, (x₀, y₀, lower bound of φ there), walls.side_wall_near
-        # Large-mill mode (reorder) keeps a ball's values side by side in memory, in two
-        # records: what a contact reads of its partner (x, v, s, r, m, 1/m, 1/I, its own
-        # index: 108 bytes, two cache lines where eight arrays took eight), and what the
-        # ball's own passes write. Settled bed of 10⁵ balls, one thread: 242 → 194 ns per
-        # ball-step (interleaved in one process), 250-270 → 189-203 (bench.py --ab). A
-        # dozen balls, which fit the first-level cache, ran 7 % slower so (CY steel
-        # 0.154-0.157 → 0.166-0.167 µs a step): one array per value there.
-        partner = (state.x, state.v, state.s, model.r, model.m, model.inv_m, model.inv_i)
-        own = (state.f, state.tau, state.drive_step, state.diss_step, state.drive_work, state.dissipated, state.elastic,
-               state.side_ref)
-        if reorder:
-            ti.root.dense(ti.ij, (B, N)).place(*partner, state.user_of)
-            ti.root.dense(ti.ij, (B, N)).place(*own)
-        else:
-            for fld in partner + own:
-                ti.root.dense(ti.ij, (B, N)).place(fld)
+        self._place_balls((state.x, state.v, state.s, model.r, model.m, model.inv_m, model.inv_i),
+                          (state.f, state.tau, state.drive_step, state.diss_step, state.drive_work, state.dissipated,
+                           state.elastic, state.side_ref))
         ids = (B, N) if reorder else (1, 1)
         state.row_of = ti.field(i32, ids)  #: row of the ball with own index u (inverse of user_of)
         state.step = ti.field(i64, B)
         state.status = ti.field(i32, B)
         state.bad_ball = ti.field(i32, B)  #: own index (user_id) of the ball that raised the status
 
-        # ---- open contacts [B, N, SLOTS], their event data in a pool of rows [B, P]
+    def _place_balls(self, partner: tuple, own: tuple):
+        """Place the fields [B, N] of what a contact reads of its partner and of what the
+        ball's own passes write. Large-mill mode (reorder) keeps a ball's values side by
+        side in memory, in these two records (partner: x, v, s, r, m, 1/m, 1/I and its own
+        index, 108 bytes, two cache lines where eight arrays took eight). Settled bed of
+        10⁵ balls, one thread: 242 → 194 ns per ball-step (interleaved in one process),
+        250-270 → 189-203 (bench.py --ab). A dozen balls, which fit the first-level cache,
+        ran 7 % slower so (CY steel 0.154-0.157 → 0.166-0.167 µs a step): one array per
+        value there."""
+        B, N = self.B, self.N
+        if self.reorder:
+            ti.root.dense(ti.ij, (B, N)).place(*partner, self.state.user_of)
+            ti.root.dense(ti.ij, (B, N)).place(*own)
+        else:
+            for fld in partner + own:
+                ti.root.dense(ti.ij, (B, N)).place(fld)
+
+    def _contact_fields(self):
+        """Open contacts [B, N, SLOTS], their event data in a pool of rows [B, P]."""
+        B, N, P, contacts = self.B, self.N, self.pool_capacity, self.contacts
         contacts.slot_mask = ti.field(i32, (B, N))  #: bit k set: slot k holds an open event
         contacts.slot_closed = ti.field(i32, (B, N))  #: bit k set: slot k closed this step, its row not yet released
         contacts.slot_partner = ti.field(i32, (B, N, SLOTS))  #: partner ball of slot k ≥ WALLS
@@ -242,23 +273,26 @@ class Fields:
         contacts.pool_free = ti.field(i32, (B, max(1, P - self.spill_base)))  #: stack of released shared rows, [0, pool_top)
         contacts.pool_top = ti.field(i32, B)
         contacts.pool_used = ti.field(i32, B)  #: shared rows ever handed out: spill_base + [0, pool_used)
-        shared = (B, N, SLOTS) if share_pairs else (1, 1, 1)
+        shared = (B, N, SLOTS) if self.share_pairs else (1, 1, 1)
         contacts.pair_f = ti.field(vec3, shared)  #: N, force of this step on the partner of slot k
         contacts.pair_tq = ti.field(vec3, shared)  #: N m, torque of this step on the partner of slot k
 
-        # ---- spatial hash [B, cells] and [B, N]
-        spatial.cell_count = ti.field(i32, (B, grid_cells))
-        spatial.cell_start = ti.field(i32, (B, grid_cells))
+    def _spatial_fields(self):
+        """The spatial hash [B, cells] and [B, N], the Verlet neighbour lists [B, N, NEIGHBOURS]."""
+        B, N, spatial = self.B, self.N, self.spatial
+        spatial.cell_count = ti.field(i32, (B, self.grid_cells))
+        spatial.cell_start = ti.field(i32, (B, self.grid_cells))
         spatial.cell_of = ti.field(i32, (B, N))
         spatial.sorted_ids = ti.field(i32, (B, N))
-
-        # ---- Verlet neighbour lists [B, N, NEIGHBOURS]
+        # Verlet neighbour lists
         spatial.rebuild = ti.field(i32, B)  #: 1: lists are stale
         spatial.x_ref = ti.field(vec3, (B, N))  #: positions at the last build, m (scratch of reorder.py before it)
         spatial.nbr_count = ti.field(i32, (B, N))
         spatial.nbr = ti.field(i32, (B, N, NEIGHBOURS))  #: neighbour rows (scratch of reorder.py before a build)
 
-        # ---- output buffers, drained by the launcher after every launch
+    def _output_fields(self):
+        """The buffers of events and frames, drained by the launcher after every launch."""
+        B, N, out, event_capacity, frame_capacity = self.B, self.N, self.out, self.event_capacity, self.frame_capacity
         out.events = ti.Vector.field(NCOL, f64, (B, event_capacity))
         out.n_events = ti.field(i32, B)
         out.frame_t = ti.field(f64, (B, frame_capacity))
@@ -272,7 +306,6 @@ class Fields:
         # (taimill.model.spectra): events, and their energy in fixed point
         out.spectrum_count = ti.field(i64, (B, *SP.SHAPE))
         out.spectrum_fixed = ti.field(i64, (B, *SP.SHAPE))
-
 
     def field(self, name: str):
         """The field called `name`, in whichever group holds it."""

@@ -308,7 +308,7 @@ class LiveMill:
         t = self.time
         n = math.ceil(t / dt_target * (1 - 1e-12)) if t > 0 else 0
         dt = t / n if n else dt_target
-        every = max(1, int(round(1.0 / (self.preset.trajectory_rate * dt))))
+        every = rules.frame_every(self.preset.trajectory_rate, dt)
         set_clock(self.F, 0, dt, n, every)
         self.runner.specs[0] = self.spec.replace(dt=dt, frame_every=every)
         self.preset = dataclasses.replace(self.preset, dt=dt)

@@ -24,6 +24,7 @@ from zarr.core.buffer import default_buffer_prototype
 from zarr.core.sync import sync
 
 from taimill.errors import StoreError
+from taimill.model import rules
 from taimill.model.mechanisms import STRESS_MIN_UN
 from taimill.model.spectra import from_rows
 from taimill.store.chunks import _chunk_key, location, read_rows, why
@@ -113,11 +114,11 @@ class RunStore:
 
     def _check_config(self) -> None:
         """The arrays against the stored config: the balls' count and radius, and the
-        frames that its duration and trajectory_rate give (as `model.spec` steps them:
-        one every round(1 / (rate dt)) steps, at both ends), within one frame. A killed
-        run has fewer (its status says so); only more frames than possible, or fewer in
-        a complete run, are damage. A live recording (live_start_time) lasts as long as
-        it was recorded, an import (energy_source) as its dumps: no frame count."""
+        frames that its duration and trajectory_rate give (rules.frame_intervals, with a
+        frame at both ends), within one frame. A killed run has fewer (its status says
+        so); only more frames than possible, or fewer in a complete run, are damage. A
+        live recording (live_start_time) lasts as long as it was recorded, an import
+        (energy_source) as its dumps: no frame count."""
         config = self.config
         if not isinstance(config, dict):
             return
@@ -139,8 +140,7 @@ class RunStore:
         rate, duration, dt = config.get("trajectory_rate"), config.get("duration"), config.get("dt")
         if not all(_is_number(x) and math.isfinite(x) and x > 0 for x in (rate, duration, dt)):
             return
-        every = max(1, round(1.0 / (rate * dt)))
-        frames = max(1, round(duration / (every * dt))) + 1
+        frames = rules.frame_intervals(rate, dt, duration) + 1
         n = self.rows.get("trajectory", 0)
         said = f"{duration:g} s at {rate:g} frames/s (dt {dt:g} s) give {frames}"
         if n > frames + 1:

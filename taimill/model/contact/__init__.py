@@ -3,8 +3,9 @@
     contact = normal spring + damping + tangential + rolling
 
 Each sub-model is a small frozen dataclass with its coefficients' meaning and its
-force as a pure NumPy function (the twin of a Taichi function of the same name in
-`taimill.physics.submodels`), registered by name in one registry per kind
+force as a pure NumPy function (the twin of a Taichi function registered under the
+same name in `taimill.physics.laws`, some in a module of their own such as
+`taimill.physics.tangential_history`), registered by name in one registry per kind
 (`registry`). A run's kernels are compiled for the sub-models it uses: nothing in
 the inner loop tests a model's name or id.
 

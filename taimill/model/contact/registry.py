@@ -8,8 +8,11 @@
 | hunt-crossley  | hertz  | hunt-crossley: k uⁿ      | eq 2.19, Hunt & Crossley 1975 |
 | hertz-mindlin  | hertz  | tsuji: √(m_e n k u^(n-1)) | Tsuji 1992 / EDEM: constant e |
 
-A new sub-model is its own module (NumPy here, its Taichi twin under the same name in
-`taimill.physics.submodels`) and one line in its kind's registry below.
+A new sub-model is its own module (NumPy here; its Taichi twin in `taimill.physics`,
+as `taimill.physics.rolling_epsd2`), one line in its kind's registry below and one in
+its kind's table of `taimill.physics.laws`, under the same name. The LIGGGHTS export
+writes it once it has a row in `taimill.bridge.contact_map`'s tables, and refuses it
+until then.
 """
 
 from __future__ import annotations

@@ -84,7 +84,7 @@ DERIVED_EVENT_COLUMNS = {
 # ---------------------------------------------------------------- run summary
 # The regime split as the regime map splits it (taimill.analysis.regime.MAP_REGIMES,
 # the summary's `regime_class`), repeated here so that this module imports nothing.
-REGIME_CLASSES = ("cascading", "cataracting", "pinned ring", "sliding bed", "rolling bed")
+REGIME_CLASSES = ("cascading", "cataracting", "hopping bed", "pinned ring", "sliding bed", "rolling bed")
 # A label with "{stations}" is filled with the summary's `stations` (the whole mill's rows).
 # (key in the summary, label, unit, scale)
 SUMMARY_ROWS = (
@@ -105,6 +105,7 @@ SUMMARY_ROWS = (
     ("mean_se_tangential", "  tangential", "mJ", 1e3),
     ("normal_fraction", "normal / total SE", "", 1),
     ("dissipated_power", "dissipated power, one jar", "W", 1),
+    ("friction_share", "  friction's share of it", "", 1),
     ("specific_power_W_per_g", "dissipated power per g of powder", "W/g", 1),
     ("specific_power_impact_W_per_g", "… of it in impacts", "W/g", 1),
     ("shear_power_persistent_wall_W_per_m2", "persistent friction on the wall (shear view)", "W/m²", 1),
@@ -116,7 +117,7 @@ SUMMARY_ROWS = (
     ("randomness_index", "randomness index 1/σ", "", 1),
     ("regime", "motion regime", "", None),
     ("regime_confidence", "  confidence (share of 1 s pieces)", "", 1),
-    ("regime_class", "  class (regime map: 5 classes)", "", None),
+    ("regime_class", "  class (regime map: 6 classes)", "", None),
     ("wall_lag", "  wall lag (0: turns with jar, 1: rests on plate)", "", 1),
     ("slip_ratio", "  wall slip ratio", "", 1),
     ("critical_ratio", "critical ratio K_c (one ball)", "", 1),
@@ -147,7 +148,8 @@ SUMMARY_UNITS: dict[str, str] = {
     **{f"dissipated_power_{k}": "W" for k in (*MECHANISM_CLASSES, *MECHANISM_PARTS, *MECHANISM_KINDS)},
     "power": "W", "share": "1",  # main_sink
     "randomness_index": "1", "regime_confidence": "1", "side_wall_fraction": "1",
-    "wall_fraction": "1", "flight_fraction": "1", "flight_chord": "1", "wall_lag": "1",  # regime_criteria
+    "wall_fraction": "1", "flight_fraction": "1", "flight_chord": "1", "wall_lag": "1", "impact_chord": "1",  # regime_criteria
+    "friction_share": "1",  # of the dissipated power (power_led)
     "regime_thresholds": "1",
     "power_per_area": "W/m²", "concentration": "1", "arc_length": "m", "angle_deg": "deg",
     "x": "m", "y": "m", "z": "m", "z_range": "m", "r_range": "m", "over_band": "1", "band_sigmas": "1",

@@ -297,7 +297,7 @@ def test_regime_features_over_many_frames_equal_one_contact_search_per_frame(pai
         on_wall = np.unique(c["i"][c["j"] == SIDE]).astype(int)
         bb = c["j"] >= 0
         touching = np.unique(np.concatenate([on_wall, c["i"][bb], c["j"][bb]]).astype(int))
-        p = want.setdefault(int(t // regime.PIECE), np.zeros(7))
+        p = want.setdefault(int(t // regime.PIECE), np.zeros(9))  # the impact chord (7, 8) comes with events
         p[:3] += [n, len(on_wall), n - len(touching)]
         if len(on_wall):
             xx, vv = x[f][on_wall], block["velocity"][f][on_wall]

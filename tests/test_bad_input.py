@@ -307,7 +307,7 @@ VALUES = [
     ("sweep --replicas 1001", SWEEP + ["--ratio", "-2", "--replicas", "1001"], ["--replicas", "[1, 1000]"]),
     ("sweep --refine-rounds 0", SWEEP + ["--ratio", "-2", "--refine-rounds", "0"], ["--refine-rounds", "[1, 10]"]),
     ("sweep --refine-rounds 11", SWEEP + ["--ratio", "-2", "--refine-rounds", "11"], ["--refine-rounds", "[1, 10]"]),
-    ("sweep --refine with two K", SWEEP + ["--ratio", "-1,-2", "--refine"], ["--ratio", "at least 3"]),
+    ("sweep --refine with two K", SWEEP + ["--ratio", "-1,-2", "--refine", "--refine-metric", "mean_se"], ["--ratio", "at least 3"]),
     ("sweep --refine-metric unknown", SWEEP + ["--ratio", "-2", "--refine-metric", "bogus"], ["--refine-metric", "bogus"]),
     ("sweep --workers 0", SWEEP + ["--ratio", "-2", "--workers", "0"], ["--workers", "[1, 256]"]),
     ("sweep --workers 300", SWEEP + ["--ratio", "-2", "--workers", "300"], ["--workers", "[1, 256]"]),

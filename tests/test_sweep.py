@@ -33,7 +33,7 @@ PRESET = "presets/p4-cy-steel.toml"
 # 3 K x 2 replicas of 0.3 s, then one refinement round (up to 2 K x 2 replicas more):
 # chunks of B = 2 mills with different automatic dt share one kernel, on 2 processes.
 SWEEP = ("sweep", PRESET, "--ratio", "-2:-3:0.5", "--replicas", 2, "--duration", 0.3, "--batch", 2,
-         "--refine", "--refine-rounds", 1)
+         "--refine", "--refine-metric", "mean_se", "--refine-rounds", 1)
 TIMING = {"wall_seconds", "realtime_factor", "batch"}
 
 
@@ -102,7 +102,10 @@ def test_chunks_group_engines_and_put_the_costliest_first():
 def test_sweep_rejects_bad_input_before_running_anything(tmp_path):
     out = tmp_path / "s.zarr"
     for args, key in ((("--ratio", "0:-4:0"), "--ratio"), (("--replicas", 0), "--replicas"),
-                      (("--ratio", "-1,-2", "--refine"), "--ratio"), (("--workers", 2, "--scheduler", "tcp://x:1"), "--workers"),
+                      (("--ratio", "-1,-2", "--refine", "--refine-metric", "mean_se"), "--ratio"),
+                      # the figure to maximise is the user's: impacts or dissipation, never a default
+                      (("--ratio", "-1:-3:0.5", "--refine"), "--refine-metric"),
+                      (("--workers", 2, "--scheduler", "tcp://x:1"), "--workers"),
                       (("--ball-material", "gold"), "balls.material"), (("--batch", 0), "--batch")):
         res = taimill("sweep", PRESET, *args, "--out", out)
         assert res.returncode == 2, (args, res.stderr)

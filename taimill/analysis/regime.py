@@ -8,6 +8,13 @@ Criteria (each a fraction or a length ratio, measured in the analysis window):
   ball (in flight; the floor and lid do not count, gravity only sets balls on the floor).
 - `flight_chord`: mean distance between successive side-wall impacts (u̇_n ≥ 5 cm/s)
   of the same ball, over the largest chord a centre can fly, 2(R − r).
+- `impact_chord`: where the balls' side-wall impacts (u̇_n ≥ 5 cm/s) come from, in the
+  plate frame: the distance between a ball's successive impacts, with the jar's turn
+  relative to the plate between them taken out (the jar frame's point rotated by
+  ψ = φ_plate − φ_jar), over 2(R − r), averaged with weights ½ m_e u̇_n² (the normal
+  stress energy of the landing impact). Small for balls that hop in place while the
+  wall slides under them; of order 0.3–0.6 for balls thrown across the jar. NaN
+  without two impacts of one ball.
 - `wall_lag`: for the balls touching the side wall, their mean azimuthal speed in the
   jar frame over the mean speed (Ω − w) ρ at which the plate frame moves relative to
   the jar at their centre radius ρ (Ω: plate speed, w: absolute jar spin, both of the
@@ -17,10 +24,11 @@ Criteria (each a fraction or a length ratio, measured in the analysis window):
 
 Rules, in order:
     rolling      wall_fraction ≥ 0.5 and flight_fraction < 0.35   (balls ride the wall)
-    cataracting  flight_fraction ≥ 0.55                           (most of the time in
-                                                                  flight)
-    cascading    otherwise                                       (balls roll and tumble
-                                                                  over the bed)
+    cataracting  flight_fraction ≥ 0.55 and impact_chord ≥ 0.16   (most of the time in
+                                                                  flight, landing away
+                                                                  from where they left)
+    cascading    otherwise                                       (balls roll, tumble or
+                                                                  hop over the bed)
 Thresholds set from the CY steel preset scanned over K = −0.2 … −3.8 (8 s runs;
 windows 1–8 s and 4–8 s agree within 0.03, and 2–3 s runs over three seeds too):
 wall_fraction 0.06–0.36 for K ≥ −2.6 vs 0.77–0.91 at K ≤ −3.4;
@@ -31,6 +39,15 @@ threshold sits halfway between K = −0.6 and −2.2 and puts the change near K 
 rolling) and CY fluorite (−0.6 cascading; −2.2 and −3.8 rolling: with μ = 0.2 the
 balls slide round the wall as a ring). The flight chord is reported, not used: with
 the HM flat wall it stays ≈ 0.07 at K = −2.2 although the balls are mostly in flight.
+
+A flight fraction alone calls a hop a flight. On a standard-gear mill (PM 100, 80 ml
+zirconia bowl, 25 zirconia balls of 5 mm, 400 rpm, K = −1, measured zirconia friction;
+window 2–4 s) the balls are off the wall and each other 90 % of the time, but they hop
+≈ 1 mm in place while the wall slides under them: impact_chord 0.091. Thrown balls land
+elsewhere: CY steel (5 s runs, window 2–5 s) 0.28 at K = −1.0, 0.35 (−1.4), 0.39 (−1.8),
+0.47 (−2.2), 0.55 (−2.6); HM steel 0.58 at −2.2. CATARACT_CHORD = 0.16 sits at the
+geometric mean of the hopping 0.091 and the lowest thrown 0.28; it moves none of these
+P 4 runs' regimes. A hopping charge is `cascading` here and a `hopping bed` on the map.
 
 Confidence: the window is cut into 1 s pieces, each classified by the same rules; the
 confidence is the share of pieces agreeing with the whole window's label (1.0 = every
@@ -49,6 +66,7 @@ from taimill.schema import REGIME_CLASSES
 
 ROLLING_WALL, ROLLING_FLIGHT = 0.5, 0.35
 CATARACT_FLIGHT = 0.55
+CATARACT_CHORD = 0.16  # impact_chord at and above which balls in flight are thrown, not hopping
 TOUCH_SLACK = 0.02  # of a ball radius
 IMPACT_UN = 0.05  # m/s, side-wall impacts counted for the flight chord
 FEATURE_RATE = 25.0  # frames per second examined
@@ -56,10 +74,17 @@ PAIR_ELEMENTS = 1 << 20  # ball pairs compared at once across frames (× 8 B × 
 PIECE = 1.0  # s, sub-window for the confidence
 
 THRESHOLDS = {"rolling": {"wall_fraction >=": ROLLING_WALL, "flight_fraction <": ROLLING_FLIGHT},
-              "cataracting": {"flight_fraction >=": CATARACT_FLIGHT}}
+              "cataracting": {"flight_fraction >=": CATARACT_FLIGHT, "impact_chord >=": CATARACT_CHORD}}
 
 
-def classify(wall_fraction: float, flight_fraction: float, flight_chord: float = math.nan) -> str:
+def hopping(flight_fraction: float, impact_chord: float) -> bool:
+    """Balls mostly off the wall and each other that land where they left, in the plate
+    frame: they hop in place (a NaN chord, no repeated impacts, is not taken as hopping)."""
+    return flight_fraction >= CATARACT_FLIGHT and impact_chord < CATARACT_CHORD
+
+
+def classify(wall_fraction: float, flight_fraction: float, flight_chord: float = math.nan,
+             impact_chord: float = math.nan) -> str:
     """The rules above; NaN criteria (e.g. too many balls to search pairs) fall back on
     the wall fraction alone."""
     if not math.isfinite(wall_fraction):
@@ -68,7 +93,7 @@ def classify(wall_fraction: float, flight_fraction: float, flight_chord: float =
         return "rolling" if wall_fraction >= ROLLING_WALL else "cascading/cataracting"
     if wall_fraction >= ROLLING_WALL and flight_fraction < ROLLING_FLIGHT:
         return "rolling"
-    if flight_fraction >= CATARACT_FLIGHT:
+    if flight_fraction >= CATARACT_FLIGHT and not hopping(flight_fraction, impact_chord):
         return "cataracting"
     return "cascading"
 
@@ -81,13 +106,14 @@ class RegimeFeatures:
         self.pairwise = len(self.radii) <= MAX_PAIRWISE
         self.next_t = t0
         # piece -> [ball-frames, on wall, in flight, chord sum, chords,
-        #           Σ azimuthal jar-frame speed on the wall, Σ (Ω − w) ρ on the wall]
+        #           Σ azimuthal jar-frame speed on the wall, Σ (Ω − w) ρ on the wall,
+        #           Σ SE_n × plate-frame chord, Σ SE_n]
         self.pieces: dict[int, np.ndarray] = {}
-        self.last_impact: dict[int, tuple[float, float]] = {}
+        self.last_impact: dict[int, tuple] = {}  # ball -> its last impact point, jar and plate frame
         self.chord_scale = 2.0 * (g.jar_radius - g.ball_radius)
 
     def _piece(self, t: float) -> np.ndarray:
-        return self.pieces.setdefault(int((t - self.t0) // PIECE), np.zeros(7))
+        return self.pieces.setdefault(int((t - self.t0) // PIECE), np.zeros(9))
 
     def _sampled(self, time: np.ndarray):
         """(index, time) of the frames sampled at FEATURE_RATE: the first frame at or
@@ -150,24 +176,33 @@ class RegimeFeatures:
     def events(self, block: dict) -> None:
         sel = (block["kind"] == 1) & (block["body_j"] == SIDE) & (block["un"] >= IMPACT_UN) & (block["t_start"] >= self.t0)
         order = np.argsort(block["t_start"][sel], kind="stable")
-        for t, b, x, y in zip(*(block[k][sel][order] for k in ("t_start", "body_i", "x", "y"))):
-            prev = self.last_impact.get(int(b))
-            self.last_impact[int(b)] = (x, y)
+        t, b, x, y, m, un = (block[k][sel][order] for k in ("t_start", "body_i", "x", "y", "m_eff", "un"))
+        se = 0.5 * m * un * un
+        # the impact point in the plate frame: the jar frame's turned back by ψ = φ_plate − φ_jar
+        # (the configured drive's angles; a live-tuned recording's differ after a change)
+        psi = np.array([self.g.plate.at(float(tk))[2] - self.g.jar.at(float(tk))[2] for tk in t])
+        xp, yp = np.cos(psi) * x + np.sin(psi) * y, np.cos(psi) * y - np.sin(psi) * x
+        for k in range(len(t)):
+            prev = self.last_impact.get(int(b[k]))
+            self.last_impact[int(b[k])] = (x[k], y[k], xp[k], yp[k])
             if prev is not None:
-                p = self._piece(float(t))
-                p[3] += math.hypot(x - prev[0], y - prev[1]) / self.chord_scale
+                p = self._piece(float(t[k]))
+                p[3] += math.hypot(x[k] - prev[0], y[k] - prev[1]) / self.chord_scale
                 p[4] += 1
+                p[7] += se[k] * math.hypot(xp[k] - prev[2], yp[k] - prev[3]) / self.chord_scale
+                p[8] += se[k]
 
     @staticmethod
     def _criteria(a: np.ndarray) -> dict:
         return {"wall_fraction": a[1] / a[0] if a[0] else math.nan,
                 "flight_fraction": a[2] / a[0] if a[0] else math.nan,
                 "flight_chord": a[3] / a[4] if a[4] else 0.0,
-                "wall_lag": a[5] / a[6] if a[6] else math.nan}
+                "wall_lag": a[5] / a[6] if a[6] else math.nan,
+                "impact_chord": a[7] / a[8] if a[8] > 0 else math.nan}
 
     @staticmethod
     def _label(crit: dict) -> str:
-        return classify(crit["wall_fraction"], crit["flight_fraction"], crit["flight_chord"])
+        return classify(crit["wall_fraction"], crit["flight_fraction"], crit["flight_chord"], crit["impact_chord"])
 
     def result(self) -> dict:
         """{'regime', 'regime_confidence', 'regime_criteria': {...}, 'regime_thresholds'}"""
@@ -200,6 +235,31 @@ SLIDING_SLIP = 0.1  # slip_ratio at and above which a riding charge is a sliding
 # beds), fluorite at −3.8 (μ_r 0.02, 0.1, ball-wall only) 0.017, 0.042, −0.016. The
 # threshold sits in the middle of the gap between rings (≤ 0.05) and beds (≥ 0.8).
 PINNED_LAG = 0.5
+# A criterion within this factor of the threshold that decided a class is called
+# borderline: a replica, another seed or a longer window may give the other class.
+BORDERLINE = 1.5
+
+
+def class_note(label: str, criteria: dict, slip: float) -> str | None:
+    """A line when the class rests on a criterion near its threshold (within BORDERLINE
+    of it), naming the criterion, its value, the threshold and the other class; None
+    when the class is clear. criteria: the regime's (wall_fraction, flight_fraction,
+    impact_chord, …); slip: the slip ratio."""
+    def near(value, threshold):
+        return math.isfinite(value) and threshold / BORDERLINE <= value <= threshold * BORDERLINE
+
+    def line(name, value, threshold, other):
+        return (f"borderline: {name} {value:.3g} is near the {threshold:g} that splits {label} from {other}; "
+                "replicas (other seeds) tell which it is")
+
+    chord, flight = criteria.get("impact_chord", math.nan), criteria.get("flight_fraction", math.nan)
+    if label in ("sliding bed", "rolling bed") and near(slip, SLIDING_SLIP):
+        return line("slip ratio", slip, SLIDING_SLIP, "rolling bed" if label == "sliding bed" else "sliding bed")
+    if label in ("hopping bed", "cataracting") and flight >= CATARACT_FLIGHT and near(chord, CATARACT_CHORD):
+        return line("impact chord", chord, CATARACT_CHORD, "cataracting" if label == "hopping bed" else "hopping bed")
+    if label in ("cascading", "cataracting", "hopping bed") and near(flight, CATARACT_FLIGHT):
+        return line("flight fraction", flight, CATARACT_FLIGHT, "cascading" if label != "cascading" else "cataracting")
+    return None
 
 
 def slip_ratio(row: dict) -> float:
@@ -218,14 +278,19 @@ def slip_ratio(row: dict) -> float:
     return power / ref if ref > 0 else math.nan
 
 
-def map_regime(regime: str, slip: float, wall_lag: float = math.nan) -> str:
+def map_regime(regime: str, slip: float, wall_lag: float = math.nan, flight_fraction: float = math.nan,
+               impact_chord: float = math.nan) -> str:
     """One of MAP_REGIMES: the run's regime, its `rolling` split by the wall lag and the
     slip ratio: wall_lag < PINNED_LAG pinned ring; otherwise sliding bed when slip ≥
     SLIDING_SLIP, else rolling bed. Without a finite wall_lag (rows of sweep stores
     written before it was measured, which lack the column) the old two-way rule holds:
     slip ≥ SLIDING_SLIP sliding bed, else pinned ring — so such a "pinned ring" may be
-    a rolling bed."""
+    a rolling bed. A charge whose balls hop in place in the plate frame (`hopping`:
+    mostly in flight, impact_chord < CATARACT_CHORD) is a hopping bed; rows without an
+    impact_chord (older stores) keep their regime."""
     if regime != "rolling":
+        if hopping(flight_fraction, impact_chord):
+            return "hopping bed"
         return regime if regime in MAP_REGIMES else "unknown"
     if not math.isfinite(slip) and not math.isinf(slip):
         return "unknown"

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from taimill.analysis.events import EventStats
-from taimill.analysis.regime import RegimeFeatures, map_regime, slip_ratio
+from taimill.analysis.regime import RegimeFeatures, class_note, map_regime, slip_ratio
 from taimill.analysis.rungeometry import RunGeometry
 from taimill.analysis.spatial import RadialDensity, WallMap
 from taimill.analysis.spectra import summary as spectra_summary
@@ -100,18 +100,44 @@ def mechanism_powers(power: np.ndarray) -> dict:
     return out
 
 
+# Friction's share of the dissipated power at and above which a charge is friction-led:
+# its impacts' normal damping takes a tenth or less. Measured (5 s runs, window 2–5 s):
+# the thesis' P 4 with steel friction around its impact maximum, CY K = −1.4 … −2.6,
+# 89, 86, 83, 79 % and HM K = −2.2 65 %; at its ends CY K = −1.0 90.1 % and the pinned
+# ring at −3.6 91 % (low stress energies in the thesis too); standard-gear mills (K = −1)
+# 94 % (P 7, 45 ml silicon nitride, powder set, 300 rpm: a rolling bed), 97.6 % (PM 100,
+# zirconia: a hopping bed) and 100 % (powder-coated beds without impacts); the CY
+# fluorite sliding bed 97.4 %.
+FRICTION_LED = 0.9
+
+
+def power_lead(energy: dict) -> dict:
+    """What carries a run's dissipated power (the energy keys, W): `friction_share`, the
+    friction (shear) part of the dissipated power, and `power_led`: "friction-led" when
+    it is at least FRICTION_LED, else "impact-led"; None without dissipation."""
+    total, friction = energy.get("dissipated_power", math.nan), energy.get("dissipated_power_friction", math.nan)
+    if not (isinstance(total, float) and total > 0 and math.isfinite(friction)):
+        return {"friction_share": math.nan, "power_led": None}
+    share = min(max(friction / total, 0.0), 1.0)  # rounding of the ledger's parts
+    return {"friction_share": share, "power_led": "friction-led" if share >= FRICTION_LED else "impact-led"}
+
+
 def regime_class(regime: dict, energy: dict, g: RunGeometry, n_balls: int) -> dict:
     """The run's regime split as the regime map splits it (taimill.analysis.regime):
     `wall_lag` (from the criteria), `slip_ratio` of the persistent side-wall friction
-    power, and `regime_class`, one of MAP_REGIMES (cascading, cataracting, pinned
-    ring, sliding bed, rolling bed) or "unknown"."""
+    power, `regime_class`, one of MAP_REGIMES (cascading, cataracting, hopping bed,
+    pinned ring, sliding bed, rolling bed) or "unknown", and `regime_class_note`, a
+    line when that class rests on a criterion near its threshold (else None)."""
     side = (energy.get("dissipation_by_mechanism") or {}).get("side", {}).get("persistent", {})
     row = {"plate_rpm": g.drive.plate_rpm, "mu_d_wall": g.wall_mu_d, "balls": n_balls, "ball_mass": g.ball_mass,
            "plate_radius": g.plate_radius, "jar_radius": g.jar_radius, "ratio": g.ratio,
            "dissipated_power_side_persistent_friction": side.get("friction", math.nan)}
     slip = slip_ratio(row)
-    lag = regime.get("regime_criteria", {}).get("wall_lag", math.nan)
-    return {"regime_class": map_regime(regime.get("regime", "unknown"), slip, lag), "wall_lag": lag, "slip_ratio": slip}
+    crit = regime.get("regime_criteria", {})
+    lag = crit.get("wall_lag", math.nan)
+    label = map_regime(regime.get("regime", "unknown"), slip, lag, crit.get("flight_fraction", math.nan),
+                       crit.get("impact_chord", math.nan))
+    return {"regime_class": label, "regime_class_note": class_note(label, crit, slip), "wall_lag": lag, "slip_ratio": slip}
 
 
 def mill_power(event_stats: dict, energy: dict, stations: int | None) -> dict:
@@ -210,6 +236,7 @@ class Summary:
             out["all_contacts"] = p["all_contacts_estimator"]
             out["events_total"] = self.events_total
         out.update(p["energy"])
+        out.update(power_lead(p["energy"]))
         out.update(p["mill_power"])
         if self.whole_run:
             out["randomness_index"] = p["randomness_index"]

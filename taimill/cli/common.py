@@ -162,12 +162,46 @@ def _fmt(value, scale):
     return f"{value * scale:.4g}"
 
 
+# The rows of the dissipated power: a friction-led run's table leads with them.
+DISSIPATION_ROWS = ("dissipated_power", "friction_share", "specific_power_W_per_g", "specific_power_impact_W_per_g",
+                    "shear_power_persistent_wall_W_per_m2", "dissipated_power_impact", "dissipated_power_persistent",
+                    "dissipated_power_friction", "dissipated_power_mill")
+
+
+def summary_rows(s: dict) -> list[tuple]:
+    """SUMMARY_ROWS in the order a run is told: a friction-led run's dissipated power
+    (what carries it) before its impact power (the kinematic stress energy)."""
+    rows = list(SUMMARY_ROWS)
+    if s.get("power_led") == "friction-led":
+        first = next(i for i, r in enumerate(rows) if r[0] == "events")
+        lead = [r for r in rows if r[0] in DISSIPATION_ROWS]
+        rest = [r for r in rows if r[0] not in DISSIPATION_ROWS]
+        rows = rest[:first] + lead + rest[first:]
+    return rows
+
+
+def lead_line(s: dict) -> str:
+    """One line saying what carries the dissipated power (and that impacts do not, for a
+    friction-led run); "" without the keys."""
+    share, total = s.get("friction_share"), s.get("dissipated_power")
+    if not s.get("power_led") or not isinstance(share, float) or not math.isfinite(share):
+        return ""
+    impacts = s.get("impact_power")
+    told = f"; impact power (kinematic stress energy) {impacts:.4g} W" if isinstance(impacts, (int, float)) else ""
+    if s["power_led"] == "friction-led":
+        return (f"friction-led: friction takes {share:.1%} of the {total:.4g} W dissipated, impacts' normal damping "
+                f"{1 - share:.1%}{told}: the powder is worked mostly by shear (friction), not by impacts\n")
+    return f"impact-led: impacts' normal damping takes {1 - share:.1%} of the {total:.4g} W dissipated{told}\n"
+
+
 def summary_table(s: dict) -> str:
     rows = [(label.format(stations=stations_text(s.get("stations"))), _fmt(s.get(key), scale), unit)
-            for key, label, unit, scale in SUMMARY_ROWS if key in s]
+            for key, label, unit, scale in summary_rows(s) if key in s]
     w = max(len(r[0]) for r in rows)
     text = "\n".join(f"{label:<{w}}  {value:>12} {unit}" for label, value, unit in rows)
-    return _counted_line(s) + text + _main_sink_line(s.get("main_sink") or {}) + _hot_spot_line(s.get("wear_hot_spot") or {})
+    note = f"\n{s['regime_class_note']}" if s.get("regime_class_note") else ""
+    return (lead_line(s) + _counted_line(s) + text + note + _main_sink_line(s.get("main_sink") or {})
+            + _hot_spot_line(s.get("wear_hot_spot") or {}))
 
 
 def _counted_line(s: dict) -> str:

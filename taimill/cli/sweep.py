@@ -23,7 +23,8 @@ COLUMNS = (("seed", "seed", 1, "d"),
            ("mean_se", "SE mJ", 1e3, ".4g"), ("mean_se_normal", "SE_n mJ", 1e3, ".4g"),
            ("mean_se_tangential", "SE_t mJ", 1e3, ".4g"), ("impact_power", "P_I W", 1, ".4g"),
            ("impact_power_mill", "P_I mill W", 1, ".4g"), ("dissipated_power", "P_diss W", 1, ".4g"),
-           ("dissipated_power_mill", "P_diss mill W", 1, ".4g"), ("randomness_index", "1/σ", 1, ".3g"),
+           ("dissipated_power_mill", "P_diss mill W", 1, ".4g"), ("friction_share", "friction", 1, ".2f"),
+           ("randomness_index", "1/σ", 1, ".3g"),
            ("wall_lag", "wall lag", 1, ".3g"), ("regime", "regime", None, "s"), ("regime_class", "class", None, "s"),
            ("wall_seconds", "wall s", 1, ".1f"))
 
@@ -49,7 +50,7 @@ def register(subparsers) -> None:
     g.add_argument("--ball-diameter", help="ball diameters (mm), e.g. 6,12")
     g.add_argument("--replicas", type=integer, default=1, help="R seeds per point (seed … seed+R-1): mean ± 95%% band")
     g.add_argument("--refine", action="store_true", help="add points around the maximum of --refine-metric")
-    g.add_argument("--refine-metric", default="mean_se", choices=REFINE_METRICS, metavar="KEY",
+    g.add_argument("--refine-metric", default=None, choices=REFINE_METRICS, metavar="KEY",
                    help=f"summary figure to maximise: {', '.join(REFINE_METRICS)} (default mean_se)")
     g.add_argument("--refine-rounds", type=integer, default=2, help="refinement rounds, each halving the spacing (default 2)")
     o = s.add_argument_group("run overrides (every point)")
@@ -100,6 +101,10 @@ def request(a):
         raise ConfigError("command line", "--batch", a.batch, "allowed range [1, 64]")
     if not 1 <= a.refine_rounds <= 10:
         raise ConfigError("command line", "--refine-rounds", a.refine_rounds, "allowed range [1, 10]")
+    if a.refine and not a.refine_metric:  # impacts or dissipation: the user's measure, never a default
+        raise ConfigError("command line", "--refine-metric", None,
+                          f"--refine needs the figure to maximise: one of {', '.join(REFINE_METRICS)}; a friction-led "
+                          "charge takes its power by friction, not impacts (docs/choosing-conditions.md)")
     if a.refine and len(axes.get("ratio", [])) < 3:
         raise ConfigError("command line", "--ratio", a.ratio, "--refine needs a K range of at least 3 values")
     req = Request(a.preset, overrides, axes, a.replicas, a.refine_metric if a.refine else None,
@@ -158,6 +163,9 @@ def cmd_sweep(a) -> int:
             print(peak_line(p), file=sys.stderr)
         return 0
     print(sweep_table(rows, axes))
+    spread = spread_line(rows, axes)
+    if spread:
+        print(spread)
     if max(g["replicas"] for g in groups) > 1:
         print(f"\nregimes of the replicas (share per {axis_header(axes.x)}; bistable: they end in different regimes, "
               "so their mean mixes states)")
@@ -226,11 +234,61 @@ def sweep_table(rows: list[dict], axes=None) -> str:
     axes = axes or sweep_axes_of(rows)
     fixed = headline(rows, axes)
     text = (f"every point: {fixed}\n" if fixed else "") + table(rows, point_columns(axes) + COLUMNS)
+    text += friction_led_line(rows)
     stations = sorted({r["stations"] for r in rows if isinstance(r.get("stations"), (int, float)) and r["stations"] > 0})
     if stations:
         text += (f"\npowers of one jar; 'mill' columns: the whole mill, stations × one jar "
                  f"({', '.join(f'{n:g}' for n in stations)} station{'s' if stations != [1] else ''})")
     return text
+
+
+# Replicas of one condition whose dissipated power spreads by more than this (max − min
+# over their mean) depend on their start: frozen beds keep the packing they start in.
+SPREAD = 0.05
+BEDS = ("sliding bed", "rolling bed")  #: classes whose power depends on the packing a start froze into
+
+
+def spread_line(rows: list[dict], axes) -> str:
+    """A line on the start dependence of the sweep's conditions: the spread of the
+    dissipated power over each condition's replicas where it exceeds SPREAD, or, without
+    replicas, the bed points whose start may matter; "" when neither."""
+    import numpy as np
+
+    from taimill.analysis.sweep import axis_header
+
+    groups: dict = {}
+    for r in rows:
+        groups.setdefault(tuple(r.get(c) for c in axes.columns), []).append(r)
+    wide, beds = [], []
+    for key, rs in groups.items():
+        p = [r["dissipated_power"] for r in rs if isinstance(r.get("dissipated_power"), (int, float))]
+        name = ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in key)
+        if len(p) > 1 and np.mean(p) > 0 and (max(p) - min(p)) / np.mean(p) > SPREAD:
+            wide.append(f"{name}: {min(p):.3g}–{max(p):.3g} W")
+        elif len(p) == 1 and rs[0].get("regime_class") in BEDS:
+            beds.append(name)
+    lines = []
+    if wide:
+        lines.append(f"start-dependent: the replicas' dissipated power spreads by more than {SPREAD:.0%} at "
+                     f"{'; '.join(wide)} ({', '.join(axis_header(c) for c in axes.columns)}): a bed keeps the packing "
+                     "its start froze into; more replicas (--replicas) narrow the mean")
+    if beds:
+        lines.append(f"beds at {'; '.join(beds)}: a bed's power depends on the packing its start froze into "
+                     "(seed to seed by tens of %); run --replicas 3 or more to see the spread")
+    return "\n".join(lines)
+
+
+def friction_led_line(rows: list[dict]) -> str:
+    """A line naming the friction-led points (taimill.analysis.summary.power_lead): their
+    impact power understates what the charge takes; "" when there are none."""
+    led = [r["point"] for r in rows if r.get("power_led") == "friction-led" and "point" in r]
+    if not led:
+        return ""
+    which = "every point" if len(led) == len(rows) else f"point{'s' if len(led) > 1 else ''} {', '.join(map(str, sorted(set(led))))}"
+    from taimill.analysis.summary import FRICTION_LED
+
+    return (f"\nfriction-led: {which} (friction ≥ {FRICTION_LED:.0%} of the dissipated power): read P_diss, not P_I; "
+            "impacts carry little of what these charges take")
 
 
 def regime_table(groups: list[dict], axes=None) -> str:

@@ -1,5 +1,5 @@
 """The (K, μ) regime map of a sweep (docs/regimes.md): each point of the plane coloured
-by the charge's motion — cascading, cataracting, pinned ring, sliding bed, rolling bed
+by the charge's motion — cascading, cataracting, hopping bed, pinned ring, sliding bed, rolling bed
 (taimill.analysis.regime.map_regime) — with the analytic boundaries drawn over it: the
 pinning friction μ_pin(K) of one ball that cannot roll (solid), its large-|K| form
 R_p/(K²(R − r)) (dotted), and the single-ball critical ratio K_c (vertical). Contours:
@@ -19,8 +19,8 @@ from taimill.analysis.regime import MAP_REGIMES, map_regime, slip_ratio
 from taimill.analysis.theory import critical_ratio, pinning_friction
 from taimill.store.output import whole_file
 
-COLOURS = {"cascading": "#9ecae1", "cataracting": "#fdae6b", "pinned ring": "#74c476", "sliding bed": "#bcbddc",
-           "rolling bed": "#fa9fb5", "unknown": "#ffffff"}
+COLOURS = {"cascading": "#9ecae1", "cataracting": "#fdae6b", "hopping bed": "#fee08b", "pinned ring": "#74c476",
+           "sliding bed": "#bcbddc", "rolling bed": "#fa9fb5", "unknown": "#ffffff"}
 MIN_POWER = 1e-3  #: W, contours start a decade above it
 PERSISTENT_FRICTION = tuple(f"dissipated_power_{k}_persistent_friction" for k in ("ball_ball", "side", "floor", "lid"))
 
@@ -36,7 +36,8 @@ def map_cells(rows: list[dict]) -> dict:
         groups.setdefault(key, []).append(r)
     out = {}
     for key, rs in groups.items():
-        labels = [map_regime(r.get("regime", ""), slip_ratio(r), r.get("wall_lag", math.nan)) for r in rs]
+        labels = [map_regime(r.get("regime", ""), slip_ratio(r), _num(r.get("wall_lag")), _num(r.get("flight_fraction")),
+                             _num(r.get("impact_chord"))) for r in rs]
         out[key] = {"regime": max(set(labels), key=labels.count),
                     "impact_power": float(np.mean([r.get("impact_power", math.nan) for r in rs])),
                     "persistent_friction_power": float(np.mean([sum(r.get(c, 0.0) for c in PERSISTENT_FRICTION) for r in rs])),

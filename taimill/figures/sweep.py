@@ -47,7 +47,9 @@ FIGURES = (
     ("mean_se", "Average stress energy per event (thesis Figs 5.1, 5.5)", [("mean_se", "total")], "mean SE (mJ)", 1e3),
     ("mean_se_components", "Average stress energy, normal and tangential (thesis Figs 3.7b, 4.5)",
      [("mean_se_normal", "normal"), ("mean_se_tangential", "tangential")], "mean SE (mJ)", 1e3),
-    ("impact_power", "Impact power E_I/τ, eq 3.8, one jar (thesis Figs 3.7a, 4.13)", [("impact_power", "total")], "impact power (W)", 1.0),
+    ("impact_power", "Impact power E_I/τ (eq 3.8, thesis Figs 3.7a, 4.13) beside the dissipated power, one jar",
+     [("impact_power", "impact power E_I/τ (kinematic stress energy)"), ("dissipated_power", "dissipated power (what the charge takes)")],
+     "power (W)", 1.0),
     ("randomness", "Randomness index 1/σ of g(r), eq 3.9 (thesis Fig 3.8)", [("randomness_index", "1/σ")], "1/σ", 1.0),
     ("normal_fraction", "Normal share of the stress energy", [("normal_fraction", "SE_n / SE")], "normal fraction", 1.0),
     ("dissipation", "Dissipated power by class: impacts and persistent contacts (normal and friction work), one jar",
@@ -160,6 +162,19 @@ def _shown(table, axes: SweepAxes, values):
     return values if axes.text_x or scale in (None, 1) else values * scale
 
 
+def friction_led_text(table, axes) -> str:
+    """"; friction-led at Ω 700, 1100 rpm" for a title: where friction takes ≥ 90 % of the
+    dissipated power (taimill.analysis.summary.power_lead) the impact power understates it."""
+    led = [i for i, v in enumerate(table.get("power_led", [])) if v == "friction-led"]
+    if not led:
+        return ""
+    if len(led) == len(table["point"]):
+        return "\nfriction-led at every point: the charge takes its power by friction, read the dissipated power"
+    xs = sorted({first_value([table[axes.x][i]]) for i in led}, key=lambda v: (isinstance(v, str), v))
+    shown = ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in xs)
+    return f"\nfriction-led at {axis_label(axes.x)} {shown}: read the dissipated power there"
+
+
 def sweep_figure(table, title, panels, ylabel, scale, peaks=(), measured=None, axes: SweepAxes | None = None):
     """One figure of the sweep table against axes.x (default sweep_axes(table)): a panel
     per (column, panel title), a curve per combination of the other varying axes."""
@@ -194,6 +209,7 @@ def sweep_figure(table, title, panels, ylabel, scale, peaks=(), measured=None, a
         title += " — mean of replicas, 95 % band"
     if any(g["bistable"] for rows in groups.values() for g in regime_groups(table, rows, axes)):
         title += "; ringed: replicas in different regimes"
+    title += friction_led_text(table, axes)
     fixed = ", ".join(value_text(c, first_value(table[c])) for c in axes.fixed if c != axes.x)
     fig.suptitle(title + (f"\n{fixed}" if fixed else ""), fontsize=11)
     fig.tight_layout()

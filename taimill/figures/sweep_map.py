@@ -19,7 +19,8 @@ from taimill.figures.layout import legend_outside
 # maps of a sweep over two numeric axes: (file stem, column, colour bar label, scale)
 MAPS = (("map_impact_power", "impact_power", "impact power E_I/τ, one jar (W)", 1.0),
         ("map_dissipated_power", "dissipated_power", "dissipated power, one jar (W)", 1.0))
-CLASS_MARKERS = {"cascading": "s", "cataracting": "^", "pinned ring": "o", "sliding bed": ">", "rolling bed": "D"}  # else "x"
+CLASS_MARKERS = {"cascading": "s", "cataracting": "^", "hopping bed": "v", "pinned ring": "o", "sliding bed": ">",
+                 "rolling bed": "D"}  # else "x"
 
 
 def regime_class(row: dict) -> str:
@@ -28,7 +29,8 @@ def regime_class(row: dict) -> str:
     if row.get("regime_class"):
         return str(row["regime_class"])
     try:
-        return map_regime(str(row.get("regime", "")), slip_ratio(row), row.get("wall_lag", math.nan))
+        return map_regime(str(row.get("regime", "")), slip_ratio(row), row.get("wall_lag", math.nan),
+                          row.get("flight_fraction", math.nan), row.get("impact_chord", math.nan))
     except (KeyError, TypeError, ValueError):
         return "unknown"
 

@@ -223,7 +223,14 @@ class RegimeFeatures:
 # ≥ SLIDING_SLIP) and a *rolling bed* when its balls roll in place, their contact
 # points moving with the wall (no slip, so by the slip ratio alone it looked pinned).
 MAP_REGIMES = REGIME_CLASSES  # taimill.schema: the summary's regime_class takes these values
-SLIDING_SLIP = 0.1  # slip_ratio at and above which a riding charge is a sliding bed
+# slip_ratio at and above which a riding charge is a sliding bed: its wall slides under
+# it, in part or fully. Beds rolling in place read 0.0011 (CY map, μ 0.5, K = 0) and
+# 0.012–0.015 (CY graphite-6, K = −2.2, seed 6); beds whose wall slides 0.074 (CY map,
+# μ 0.25, K = −1), 0.096, 0.22, 0.59 and 0.62 (PM 100, 80 ml zirconia, 25 × 5 mm zirconia,
+# dry-ceramic-powder, 400 rpm, seeds 4, 3, 1, 2: 6 s runs, window 2–6 s), 0.43–0.49
+# (graphite-6's other state) and 0.72 (CY fluorite, K = −3.0). 0.1, the threshold before,
+# split the PM 100 bed's seeds; 0.03 lies in the gap 0.015 … 0.074.
+SLIDING_SLIP = 0.03
 # wall_lag below which a riding charge turns with the jar (pinned ring). Measured (CY,
 # 8 s runs, window 4–8 s): steel pinned rings −0.020 (K = −3.6) and −0.028 (−4.0);
 # fluorite's sliding bed at −3.0 1.000 (slip 0.72); graphite-6 at −2.2 0.9999, slip

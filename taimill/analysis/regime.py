@@ -242,29 +242,31 @@ SLIDING_SLIP = 0.03
 # beds), fluorite at −3.8 (μ_r 0.02, 0.1, ball-wall only) 0.017, 0.042, −0.016. The
 # threshold sits in the middle of the gap between rings (≤ 0.05) and beds (≥ 0.8).
 PINNED_LAG = 0.5
-# A criterion within this factor of the threshold that decided a class is called
-# borderline: a replica, another seed or a longer window may give the other class.
-BORDERLINE = 1.5
+# A criterion this close to the threshold that decided a class is called borderline: a
+# replica, another seed or a longer window may give the other class. Factors: the slip
+# ratio spans decades (beds 10⁻³ … 1), the chord a factor 6 (0.09 … 0.58), the flight
+# fraction 0.4 … 0.9 (docs/regimes.md's runs).
+BORDERLINE = {"slip ratio": 1.5, "impact chord": 1.25, "flight fraction": 1.1}
 
 
 def class_note(label: str, criteria: dict, slip: float) -> str | None:
-    """A line when the class rests on a criterion near its threshold (within BORDERLINE
-    of it), naming the criterion, its value, the threshold and the other class; None
-    when the class is clear. criteria: the regime's (wall_fraction, flight_fraction,
-    impact_chord, …); slip: the slip ratio."""
-    def near(value, threshold):
-        return math.isfinite(value) and threshold / BORDERLINE <= value <= threshold * BORDERLINE
+    """A line when the class rests on a criterion near its threshold (within the
+    criterion's BORDERLINE factor of it), naming the criterion, its value, the threshold
+    and the other class; None when the class is clear. criteria: the regime's
+    (wall_fraction, flight_fraction, impact_chord, …); slip: the slip ratio."""
+    def near(name, value, threshold):
+        return math.isfinite(value) and threshold / BORDERLINE[name] <= value <= threshold * BORDERLINE[name]
 
     def line(name, value, threshold, other):
         return (f"borderline: {name} {value:.3g} is near the {threshold:g} that splits {label} from {other}; "
                 "replicas (other seeds) tell which it is")
 
     chord, flight = criteria.get("impact_chord", math.nan), criteria.get("flight_fraction", math.nan)
-    if label in ("sliding bed", "rolling bed") and near(slip, SLIDING_SLIP):
+    if label in ("sliding bed", "rolling bed") and near("slip ratio", slip, SLIDING_SLIP):
         return line("slip ratio", slip, SLIDING_SLIP, "rolling bed" if label == "sliding bed" else "sliding bed")
-    if label in ("hopping bed", "cataracting") and flight >= CATARACT_FLIGHT and near(chord, CATARACT_CHORD):
+    if label in ("hopping bed", "cataracting") and flight >= CATARACT_FLIGHT and near("impact chord", chord, CATARACT_CHORD):
         return line("impact chord", chord, CATARACT_CHORD, "cataracting" if label == "hopping bed" else "hopping bed")
-    if label in ("cascading", "cataracting", "hopping bed") and near(flight, CATARACT_FLIGHT):
+    if label in ("cascading", "cataracting", "hopping bed") and near("flight fraction", flight, CATARACT_FLIGHT):
         return line("flight fraction", flight, CATARACT_FLIGHT, "cascading" if label != "cascading" else "cataracting")
     return None
 

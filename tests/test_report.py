@@ -131,6 +131,55 @@ def test_report_writes_every_figure(stored, tmp_path, fmt):
             assert "<svg" in text and FIGURES[name] in text
 
 
+@pytest.fixture(scope="module")
+def without_stress_events(tmp_path_factory):
+    """A real run whose window holds contacts but not one stress event: the CY steel
+    charge at K = 1 (the jar does not turn on the plate) has settled by 1.5 s and
+    only re-touches at sub-mm/s, as a friction-led charge of a standard-gear mill."""
+    out = tmp_path_factory.mktemp("runs") / "settled.zarr"
+    r = taimill("run", CY, "--ratio", "1", "--duration", "2", "--analysis-start", "1.5", "--out", str(out), "--json")
+    assert r.returncode == 0, r.stderr
+    s = json.loads(r.stdout)
+    assert s["events"] == 0 < s["all_contacts"]["events"]
+    return out
+
+
+def test_report_of_a_run_without_stress_events_draws_the_rest_and_names_what_it_left_out(without_stress_events,
+                                                                                           stored, tmp_path):
+    left = ("velocities", "stress_energy", "dissipation_spectra")  # the stress events' distributions only
+    out = tmp_path / "report"
+    r = taimill("report", str(stored[0]), "--out", str(out))  # an earlier report of a run with events
+    assert r.returncode == 0, r.stderr
+    assert "note" not in r.stderr
+    r = taimill("report", str(without_stress_events), "--out", str(out), "--overwrite")
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
+    written = {p.rsplit("/", 1)[-1] for p in r.stdout.split()}
+    drawn = [n for n in FIGURES if n not in left]
+    assert written == {f"{n}.png" for n in drawn}
+    for n in drawn:  # energy_spectra too: every contact's spectra, the normal damper's panel says it has none
+        assert (out / f"{n}.png").stat().st_size > 5000, n
+    # the earlier report's stress-event figures would pass for this run's: gone, and off the report's list
+    assert not any((out / f"{n}.png").exists() for n in left)
+    assert sorted(json.loads((out / "taimill-report.json").read_text())["figures"]) == sorted(written)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1, r.stderr
+    assert lines[0] == ("taimill: note: velocities, stress_energy, dissipation_spectra left out: no stress event "
+                        "(onset u̇n ≥ 10 mm/s) in the analysis window 1.5–2 s")
+
+
+def test_a_report_that_fails_leaves_no_figure_also_with_figures_left_out(without_stress_events, tmp_path, monkeypatch):
+    import taimill.figures.report as report
+    from inprocess import main
+
+    def broken(ax, a):
+        raise RuntimeError("a figure that fails")
+
+    monkeypatch.setattr(report, "draw_mechanisms", broken)
+    with pytest.raises(RuntimeError):
+        main("report", without_stress_events, "--out", tmp_path / "rep")
+    assert not (tmp_path / "rep").exists()
+
+
 def test_killed_run_is_analysed_up_to_its_commit_markers(tmp_path):
     # A real writer killed with SIGKILL mid-run: no summary, no status; the analysis
     # reads the committed rows only and reports the run as incomplete.

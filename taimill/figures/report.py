@@ -17,9 +17,9 @@ from matplotlib.colors import ListedColormap, LogNorm  # noqa: E402
 from taimill.analysis.events import ENERGY_BINS, SPEED_BINS, log_pdf  # noqa: E402
 from taimill.analysis.run import RunAnalysis  # noqa: E402
 from taimill.analysis.spatial import MIN_EVENTS, uniform  # noqa: E402
-from taimill.figures.layout import colorbar_beside, fit_log, legend_outside, occupied  # noqa: E402
+from taimill.figures.layout import colorbar_beside, fit_log, legend_outside, nothing, occupied  # noqa: E402
 from taimill.store.output import whole_file  # noqa: E402
-from taimill.figures.spectra import spectra_figure  # noqa: E402
+from taimill.figures.spectra import drawn, spectra_figure  # noqa: E402
 
 FORMATS = ("png", "svg", "pdf")
 MM = 1e3
@@ -135,8 +135,7 @@ def _legend_or_none(ax, what: str):
 
 
 def _nothing(ax, what: str):
-    ax.text(0.5, 0.5, f"no {what} in the analysis window", ha="center", va="center", color="0.35",
-            transform=ax.transAxes)
+    nothing(ax, f"no {what} in the analysis window")
 
 
 def _number(v: float) -> str:
@@ -327,10 +326,48 @@ FIGURES = {
 }
 
 
-def write_report(a: RunAnalysis, out_dir, fmt: str = "png") -> list[Path]:
-    """Write every figure of FIGURES into out_dir as fmt; returns the paths."""
+# Figures drawn from the event estimator's distributions (a.event): one curve per
+# stress event class, nothing else on them.
+EVENT_FIGURES = ("velocities", "stress_energy", "dissipation_spectra")
+
+
+def left_out(a: RunAnalysis) -> dict[str, str]:
+    """The figures of FIGURES this run has nothing to draw in, each with why: the event
+    distributions of a window without a stress event (a friction-led charge: a pinned
+    ring, a bed sliding on the wall) or of a run that kept no event rows, and the energy
+    spectra without an event of 1 pJ or more. A figure of nothing but "no data" text
+    says less than `report`'s one line naming it; the overview sheet keeps its panels,
+    which say so."""
+    out = {}
+    if not a.event.count.sum():
+        if not a.events_stored:
+            why = 'the run kept no event rows (outputs.events = "spectra")'
+        else:
+            what = f"stress event (onset u̇n ≥ {a.event.min_un * MM:g} mm/s)" if a.event.min_un > 0 else "event"
+            why = f"no {what} in the analysis window {a.t0:.4g}–{a.t1:.4g} s"
+        out.update(dict.fromkeys(EVENT_FIGURES, why))
+    sp = a.summary.last_spectra
+    if sp is None:
+        out["energy_spectra"] = "no energy spectra in the store"
+    elif not drawn(sp):
+        out["energy_spectra"] = "no event of 1 pJ or more in the window"
+    return out
+
+
+def left_out_text(left: dict[str, str]) -> str:
+    """One line naming the figures left out, grouped by why; "" if none."""
+    by_why: dict[str, list[str]] = {}
+    for name, why in left.items():
+        by_why.setdefault(why, []).append(name)
+    return "; ".join(f"{', '.join(names)} left out: {why}" for why, names in by_why.items())
+
+
+def write_report(a: RunAnalysis, out_dir, fmt: str = "png", leave_out: dict[str, str] | None = None) -> list[Path]:
+    """Write every figure of FIGURES into out_dir as fmt but those of `leave_out`
+    (default: left_out(a)); returns the paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    skip = left_out(a) if leave_out is None else leave_out
     paths = []
 
     def save(name, fig):
@@ -345,6 +382,8 @@ def write_report(a: RunAnalysis, out_dir, fmt: str = "png") -> list[Path]:
     for name, draw in (("g_r", draw_gr), ("velocities", draw_velocity_pdfs), ("stress_energy", draw_se),
                        ("energy", draw_energy), ("mechanisms", draw_mechanisms),
                        ("dissipation_spectra", draw_dissipation_spectra)):
+        if name in skip:
+            continue
         fig, ax = plt.subplots(figsize=(5.5, 4), layout="constrained")
         draw(ax, a)
         save(name, fig)
@@ -355,7 +394,7 @@ def write_report(a: RunAnalysis, out_dir, fmt: str = "png") -> list[Path]:
     gs = fig.add_gridspec(2, 2, height_ratios=(1, 1.4))
     draw_wear_map((fig.add_subplot(gs[0, :]), fig.add_subplot(gs[1, 0]), fig.add_subplot(gs[1, 1])), a, fig)
     save("wear_map", fig)
-    if a.summary.last_spectra is not None:
+    if "energy_spectra" not in skip:
         save("energy_spectra", spectra_figure([("this run", a.summary.last_spectra)],
                                               f"Energy spectra of the collision events, {a.t0:g}–{a.t1:g} s"))
     save("overview", overview(a))

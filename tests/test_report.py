@@ -168,7 +168,7 @@ def test_report_of_a_run_without_stress_events_draws_the_rest_and_names_what_it_
 
 
 def test_a_report_that_fails_leaves_no_figure_also_with_figures_left_out(without_stress_events, tmp_path, monkeypatch):
-    import taimill.figures.report as report
+    from taimill.figures import report
     from inprocess import main
 
     def broken(ax, a):
@@ -296,7 +296,7 @@ def test_trajectory_panel_leaves_a_48_degree_step_undrawn_and_says_so():
     draw_trajectories_top(ax, a, balls=1)
     line = next(ln for ln in ax.lines if ln.get_label() == "ball 0")
     xy = np.column_stack([line.get_xdata(), line.get_ydata()]).astype(float)
-    p, q = drawn_pieces(xy)
+    p, _ = drawn_pieces(xy)
     assert len(p) == 0  # not one piece of line: only the dots
     dots = next(ln for ln in ax.lines if ln.get_marker() == ".")
     np.testing.assert_allclose(np.column_stack([dots.get_xdata(), dots.get_ydata()]), x[:, :2] * 1e3)

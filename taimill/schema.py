@@ -39,7 +39,7 @@ EVENT_COLUMNS: dict[str, tuple[str, str, str]] = {
     "x": ("f8", "m", "contact point at onset, jar frame"),
     "y": ("f8", "m", "contact point at onset, jar frame"),
     "z": ("f8", "m", "contact point at onset, jar frame"),
-    "un": ("f8", "m/s", "onset normal approach speed (>= 0)"),
+    "un": ("f8", "m/s", "onset normal approach speed (>= 0, or a rounding error below 0 for a grazing contact)"),
     "ut": ("f8", "m/s", "onset slip speed at the contact point, spin included"),
     "m_eff": ("f8", "kg", "effective mass m_i m_j/(m_i+m_j); m_ball for walls"),
     "se_n": ("f8", "J", "normal stress energy 1/2 m_eff un^2"),

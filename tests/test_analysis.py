@@ -65,6 +65,25 @@ def test_event_threshold_drops_chatter():
     assert r["events"] == 1 and r["events_below_threshold"] == 2 and r["mean_se"] == 2
 
 
+def test_all_contacts_count_an_onset_speed_a_rounding_error_below_zero():
+    # A grazing contact can open while its surfaces barely approach: its stored onset
+    # u̇n is 0 or a rounding error below it. The all-contacts estimator (min_un = 0,
+    # as the summary's all_contacts and `--min-un 0`) counts it, with its energy and in
+    # the lowest speed bin; a stress-event threshold drops it as below.
+    ev = events(t_start=[1.0, 1.5, 2.0, 2.5], kind=[1, 0, 1, 1], un=[-4e-7, 0.0, 0.5, -1e-12],
+                ut=[0.2, 0.0, 0.1, 0.3], se_n=[1e-15, 0.0, 2.0, 0.0], se_t=[3.0, 0.0, 1.0, 5.0])
+    every = EventStats(t0=0.0, t1=3.0)
+    every.add(ev)
+    r = every.result(1.0)
+    assert r["events"] == 4 and r["events_ball_wall"] == 3 and r["events_below_threshold"] == 0
+    assert r["impact_power"] == pytest.approx(3.0 + 1e-15 + 2.0 + 1.0 + 5.0)
+    assert every.hist_un.sum() == 4 and every.hist_un[1, 0] == 2 and every.hist_un[0, 0] == 1
+    assert every.hist_se_t.sum() == 4
+    stress = EventStats(t0=0.0, t1=3.0, min_un=0.01)
+    stress.add(ev)
+    assert stress.result(1.0)["events"] == 1 and stress.dropped == 3
+
+
 def test_velocity_histograms_count_every_kept_event():
     rng = np.random.default_rng(1)
     un = 10 ** rng.uniform(-3, 0.5, 1000)

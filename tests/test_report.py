@@ -131,6 +131,55 @@ def test_report_writes_every_figure(stored, tmp_path, fmt):
             assert "<svg" in text and FIGURES[name] in text
 
 
+@pytest.fixture(scope="module")
+def without_stress_events(tmp_path_factory):
+    """A real run whose window holds contacts but not one stress event: the CY steel
+    charge at K = 1 (the jar does not turn on the plate) has settled by 1.5 s and
+    only re-touches at sub-mm/s, as a friction-led charge of a standard-gear mill."""
+    out = tmp_path_factory.mktemp("runs") / "settled.zarr"
+    r = taimill("run", CY, "--ratio", "1", "--duration", "2", "--analysis-start", "1.5", "--out", str(out), "--json")
+    assert r.returncode == 0, r.stderr
+    s = json.loads(r.stdout)
+    assert s["events"] == 0 < s["all_contacts"]["events"]
+    return out
+
+
+def test_report_of_a_run_without_stress_events_draws_the_rest_and_names_what_it_left_out(without_stress_events,
+                                                                                           stored, tmp_path):
+    left = ("velocities", "stress_energy", "dissipation_spectra")  # the stress events' distributions only
+    out = tmp_path / "report"
+    r = taimill("report", str(stored[0]), "--out", str(out))  # an earlier report of a run with events
+    assert r.returncode == 0, r.stderr
+    assert "note" not in r.stderr
+    r = taimill("report", str(without_stress_events), "--out", str(out), "--overwrite")
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
+    written = {p.rsplit("/", 1)[-1] for p in r.stdout.split()}
+    drawn = [n for n in FIGURES if n not in left]
+    assert written == {f"{n}.png" for n in drawn}
+    for n in drawn:  # energy_spectra too: every contact's spectra, the normal damper's panel says it has none
+        assert (out / f"{n}.png").stat().st_size > 5000, n
+    # the earlier report's stress-event figures would pass for this run's: gone, and off the report's list
+    assert not any((out / f"{n}.png").exists() for n in left)
+    assert sorted(json.loads((out / "taimill-report.json").read_text())["figures"]) == sorted(written)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1, r.stderr
+    assert lines[0] == ("taimill: note: velocities, stress_energy, dissipation_spectra left out: no stress event "
+                        "(onset u̇n ≥ 10 mm/s) in the analysis window 1.5–2 s")
+
+
+def test_a_report_that_fails_leaves_no_figure_also_with_figures_left_out(without_stress_events, tmp_path, monkeypatch):
+    from taimill.figures import report
+    from inprocess import main
+
+    def broken(ax, a):
+        raise RuntimeError("a figure that fails")
+
+    monkeypatch.setattr(report, "draw_mechanisms", broken)
+    with pytest.raises(RuntimeError):
+        main("report", without_stress_events, "--out", tmp_path / "rep")
+    assert not (tmp_path / "rep").exists()
+
+
 def test_killed_run_is_analysed_up_to_its_commit_markers(tmp_path):
     # A real writer killed with SIGKILL mid-run: no summary, no status; the analysis
     # reads the committed rows only and reports the run as incomplete.
@@ -174,6 +223,85 @@ def test_hermite_path_joins_the_stored_frames_and_is_exact_for_a_cubic():
     np.testing.assert_allclose(curve[::SUBSTEPS], pos(t), atol=1e-15)  # through every stored frame
     fine = np.concatenate([t[i] + np.diff(t)[i] * np.arange(SUBSTEPS) / SUBSTEPS for i in range(3)] + [t[-1:]])
     np.testing.assert_allclose(curve, pos(fine), atol=1e-12)
+
+
+def wall_ride(degrees_per_frame, rho=0.0245, h=0.01):
+    """Frames of a ball riding a jar wall (centre at rho, m, from the axis) in the jar
+    frame, sweeping the given angles between successive frames 10 ms apart, with the
+    velocity of that motion (a step at a constant angular speed)."""
+    steps = np.radians(np.asarray(degrees_per_frame, dtype=float))
+    phi = np.concatenate([[0.0], np.cumsum(steps)])
+    rate = np.concatenate([steps, steps[-1:]]) / h  # rad/s at each frame: that of the step it starts
+    t = np.arange(len(phi)) * h
+    x = np.column_stack([rho * np.cos(phi), rho * np.sin(phi), np.full(len(phi), 0.0025)])
+    v = np.column_stack([-rho * rate * np.sin(phi), rho * rate * np.cos(phi), np.zeros(len(phi))])
+    return t, x, v
+
+
+def drawn_pieces(curve):
+    """The line pieces a plot of `curve` draws: pairs of successive points both not NaN."""
+    ok = np.isfinite(curve).all(axis=1)
+    both = ok[:-1] & ok[1:]
+    return curve[:-1][both], curve[1:][both]
+
+
+def test_a_step_too_long_to_resolve_is_left_as_points_and_a_smooth_path_stays_a_curve():
+    # a 5 mm ball on the wall of the 80 ml PM 100 jar (R = 27 mm): 10° a frame is a
+    # smooth arc the Hermite curve follows; 48° a frame (the jar's turn on the plate
+    # per 10 ms frame at 400 rpm, K = -1) bows 2.1 mm off its chord, more than half the
+    # ball's radius: drawn as points only, however well its end velocities fit an arc
+    from taimill.figures.report import JOIN_BOW, frame_path
+
+    r = 0.0025
+    t, x, v = wall_ride([10, 10, 48, 10, 10])
+    curve, joined = frame_path(t, x, v, r)
+    assert joined.tolist() == [True, True, False, True, True]
+    assert curve.shape == (SUBSTEPS * 5 + 1, 3)
+    np.testing.assert_array_equal(curve[::SUBSTEPS], x)  # every stored frame is still on it
+    smooth = hermite_path(t, x, v)
+    for k in (0, 1, 3, 4):  # the resolved steps: the Hermite curve as before
+        np.testing.assert_array_equal(curve[k * SUBSTEPS:(k + 1) * SUBSTEPS + 1], smooth[k * SUBSTEPS:(k + 1) * SUBSTEPS + 1])
+    ok = np.isfinite(curve).all(axis=1)
+    pieces = np.flatnonzero(ok[:-1] & ok[1:])  # piece i joins curve points i and i + 1
+    assert not ((pieces >= 2 * SUBSTEPS) & (pieces < 3 * SUBSTEPS)).any()  # none within the 48° step
+    assert len(pieces) == 4 * SUBSTEPS  # every piece of the four others
+    # the rule: a step is drawn while its curve departs at most JOIN_BOW radii from its chord
+    bow48 = 0.0245 * (1 - np.cos(np.radians(24)))
+    assert bow48 > JOIN_BOW * r > 0.0245 * (1 - np.cos(np.radians(5)))
+    # a long straight step (free flight across the jar, 5 cm in 10 ms) stays a curve
+    t2 = np.array([0.0, 0.01])
+    x2 = np.array([[-0.025, 0.0, 0.01], [0.025, 0.0, 0.01]])
+    v2 = np.array([[5.0, 0.0, 0.0], [5.0, 0.0, 0.0]])
+    curve2, joined2 = frame_path(t2, x2, v2, r)
+    assert joined2.tolist() == [True] and np.isfinite(curve2).all()
+
+
+def test_trajectory_panel_leaves_a_48_degree_step_undrawn_and_says_so():
+    # the top view of a ball riding the wall of the CY jar (as a stored run gives it
+    # to the panel): the steps of 48° between frames 10 ms apart are not joined by any
+    # line, the frames are dots, and the title says why
+    import types
+
+    import matplotlib.pyplot as plt
+
+    from taimill.analysis.rungeometry import RunGeometry
+
+    r = 0.0025
+    g = RunGeometry.from_config(load_preset(CY).as_dict(), np.full(1, r))
+    rho = g.jar_radius - r
+    t, x, v = wall_ride([48] * 6, rho=rho)
+    frames = {"time": t, "position": x[:, None], "velocity": v[:, None]}
+    a = types.SimpleNamespace(geom=g, t0=0.0, store=types.SimpleNamespace(frames=frames, radii=np.full(1, r)))
+    fig, ax = plt.subplots()
+    draw_trajectories_top(ax, a, balls=1)
+    line = next(ln for ln in ax.lines if ln.get_label() == "ball 0")
+    xy = np.column_stack([line.get_xdata(), line.get_ydata()]).astype(float)
+    p, _ = drawn_pieces(xy)
+    assert len(p) == 0  # not one piece of line: only the dots
+    dots = next(ln for ln in ax.lines if ln.get_marker() == ".")
+    np.testing.assert_allclose(np.column_stack([dots.get_xdata(), dots.get_ydata()]), x[:, :2] * 1e3)
+    assert "frames 10 ms apart: 100% of the steps too long to draw as paths, points only" in ax.get_title()
+    plt.close(fig)
 
 
 def test_trajectory_panel_draws_smooth_curves_and_marks_the_stored_frames(stored):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import sys
 from pathlib import Path
 
 from taimill.cli.common import number, path_text, stations_text
@@ -99,18 +100,37 @@ def cmd_report(a) -> int:
             paths = report_sweep(a.run, out, a.format, overlay=a.overlay)
             _mark(out, paths)
     else:
-        from taimill.figures.report import FIGURES, write_report
+        from taimill.figures.report import FIGURES, left_out, left_out_text, write_report
 
         if a.overlay:
             raise ConfigError("command line", "--overlay", a.overlay, "only for sweep stores (taimill sweep --out)")
         _refuse_existing(out, list(FIGURES), a)
         analysis = _open(a)
+        left = left_out(analysis)  # figures with nothing to draw (no stress event, say): named in one line
         with all_or_none([out / f"{s}.{a.format}" for s in FIGURES] + [out / REPORT_MARK], out):  # a failure: no figure left
-            paths = write_report(analysis, out, a.format)
-            _mark(out, paths)
+            paths = write_report(analysis, out, a.format, leave_out=left)
+            stale = _drop_stale(out, [f"{s}.{a.format}" for s in left])
+            _mark(out, paths, drop=stale)
+        if left:
+            print(f"taimill: note: {left_out_text(left)}", file=sys.stderr)
     for p in paths:
         print(p)
     return 0
+
+
+def _drop_stale(out: Path, names) -> list[str]:
+    """Delete this report's figures an earlier report left in `out` under the names of
+    figures this one leaves out: beside the new ones they would pass for this run's.
+    Only those REPORT_MARK lists (_refuse_existing let --overwrite replace only ours);
+    returns the names deleted."""
+    from taimill.figures import is_figure
+    from taimill.store.output import remove
+
+    ours = _marked(out)
+    stale = [n for n in names if n in ours and os.path.lexists(out / n) and is_figure(out / n)]
+    for n in stale:
+        remove(out / n)
+    return stale
 
 
 def _refuse_existing(out: Path, stems, a) -> None:
@@ -142,11 +162,12 @@ def _marked(out: Path) -> set[str]:
         return set()
 
 
-def _mark(out: Path, paths) -> None:
-    """Add the figures just written to REPORT_MARK (written whole, then renamed in)."""
+def _mark(out: Path, paths, drop=()) -> None:
+    """Add the figures just written to REPORT_MARK, less those deleted (`drop`);
+    written whole, then renamed in."""
     from taimill.store.output import whole_file
 
-    names = sorted(_marked(out) | {Path(p).name for p in paths})
+    names = sorted((_marked(out) - set(drop)) | {Path(p).name for p in paths})
     with whole_file(out / REPORT_MARK, "report list") as part:
         part.write_text(json.dumps({"written_by": "taimill report", "figures": names}, indent=1))
 

@@ -1,7 +1,8 @@
 """Placement rules every taimill figure follows (matplotlib imported on use, as by the
 figure modules that import this one): a log axis spans its data (no empty
 decades), a legend sits outside the axes (never on the data), a colour bar sits right
-beside its map (also beside an equal-aspect map narrower than its layout cell)."""
+beside its map (also beside an equal-aspect map narrower than its layout cell), and
+axes with nothing to draw say so in their middle (`nothing`)."""
 
 from __future__ import annotations
 
@@ -20,6 +21,12 @@ def fit_log(ax, values, axis: str = "x") -> None:
     v = v[np.isfinite(v) & (v > 0)]
     if len(v):
         (ax.set_xlim if axis == "x" else ax.set_ylim)(v.min() / LOG_MARGIN, v.max() * LOG_MARGIN)
+
+
+def nothing(ax, text: str) -> None:
+    """Say on axes that hold no data what is missing (grey, centred), instead of
+    drawing zeros or an empty frame that reads as a plotting failure."""
+    ax.text(0.5, 0.5, text, ha="center", va="center", color="0.35", transform=ax.transAxes)
 
 
 VISIBLE = 1e-3  # a density below this share of its curve's peak is indistinguishable from 0 on a linear axis

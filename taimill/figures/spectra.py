@@ -1,7 +1,9 @@
 """The energy spectra of runs or sweep points, overlaid (taimill.model.spectra;
 docs/outcome.md): for each energy measure, collisions per second per decade of energy
 (mJ), stress events solid and every contact dotted. Axes span the bins that hold
-events; events below 1 pJ (those that dissipated nothing, say) are not drawn."""
+events; events below 1 pJ (those that dissipated nothing, say) are not drawn. A panel
+without an event of 1 pJ or more (a charge at rest, or the normal damper's share of a
+friction-led charge) says so on linear axes: a log axis has no range without data."""
 
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from taimill.analysis.spectra import LOG_HI, LOG_LO, selected  # noqa: E402
+from taimill.figures.layout import nothing  # noqa: E402
 from taimill.model.spectra import MEASURES, Spectra  # noqa: E402
 
 MJ = 1e3
@@ -38,12 +41,20 @@ def draw_measure(ax, items: list[tuple[str, Spectra]], measure: str) -> None:
             used |= y > 0
             ax.step(centres, np.where(y > 0, y, np.nan), where="mid", color=colour, ls=ls,
                     label=label if stress_only else None)
-    ax.set(xscale="log", yscale="log", xlabel="energy per event (mJ)", ylabel="events per second per decade",
-           title=TITLES[measure])
+    ax.set(xlabel="energy per event (mJ)", ylabel="events per second per decade", title=TITLES[measure])
     ax.title.set_fontsize(9)
     if used.any():
+        ax.set(xscale="log", yscale="log")
         idx = np.flatnonzero(used)
         ax.set_xlim(10 ** LOG_LO[idx[0]] * MJ, 10 ** LOG_HI[idx[-1]] * MJ)
+    else:
+        ax.set(xticks=[], yticks=[])
+        nothing(ax, "no event of 1 pJ (10⁻⁹ mJ) or more")  # LOG_HI[0]: the lowest bin's upper edge
+
+
+def drawn(sp: Spectra) -> bool:
+    """Whether the spectra hold anything spectra_figure draws: an event of 1 pJ or more."""
+    return bool(sp.count[..., 1:].any())
 
 
 def spectra_figure(items: list[tuple[str, Spectra]], title: str = ""):

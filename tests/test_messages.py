@@ -91,7 +91,11 @@ def test_run_says_it_compiles_first_run_then_from_the_cache_and_leaves_compiling
     # from the cache
     noted = json.loads(marker.read_text())
     setup = noted["seconds"]
-    expected = json.loads((marker.parent / "machine.json").read_text())["cached_seconds"] if noted["first"] else setup
+    # (on a machine that never compiled from the cache, the built-in figure, as the runner does)
+    from taimill.physics.runner import CACHED_COMPILE_SECONDS
+
+    machine = json.loads((marker.parent / "machine.json").read_text())
+    expected = machine.get("cached_seconds", CACHED_COMPILE_SECONDS) if noted["first"] else setup
     again = taimill(*argv)
     (n, why, seconds), = COMPILING.findall(again.stderr)
     assert why == "from the kernel cache" and seconds == f"{expected:.2g}"

@@ -142,6 +142,26 @@ def test_the_default_measure_is_the_dissipated_power_never_impacts():
     assert default_measure(True) == "specific_power_W_per_g"
 
 
+def test_the_figure_draws_one_curve_per_mu_with_the_classes_and_its_legend_off_the_data():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from taimill.figures.advise import advise_figure
+
+    rows = [row(rpm, mu, p * (1 + mu), seed=s, cls="sliding bed" if mu < 0.5 else "hopping bed")
+            for mu in (0.1, 0.8) for rpm, p in ((300, 1.0), (650, 3.0)) for s in (0, 1)]
+    rows[1]["dissipated_power"] *= 1.2  # a replica band at 300 rpm, μ 0.1
+    fig = advise_figure(table(rows), "a charge")
+    ax = fig.axes[0]
+    labels = ax.get_legend_handles_labels()[1]
+    assert labels[:2] == ["μ 0.1", "μ 0.8"] and {"sliding bed", "hopping bed", "best speed at that μ"} <= set(labels)
+    fig.canvas.draw()
+    assert not ax.get_legend().get_window_extent().overlaps(ax.get_window_extent())
+    plt.close(fig)
+
+
 # ---------------------------------------------------------------- levels and speeds
 def test_an_estimated_pair_runs_at_the_span_of_coated_to_bare_media_a_measured_one_as_it_is():
     from taimill.model.preset import load_preset

@@ -114,10 +114,12 @@ def across_mu(by_mu: list[dict], key: str) -> str:
 
 def hinges(by_mu: list[dict]) -> list[str]:
     """Why the answer at one plate speed hinges on μ (empty: it does not): "class" where
-    the regime classes differ between two μ, "power-led verdict" where the power-led
-    labels do (a μ without dissipation has none and is left out), "power ×F" where the
-    μ levels' mean dissipated power spreads by more than SPREAD_FACTOR (largest over
-    smallest; "power 0 to X" where one level dissipates nothing). One μ: never."""
+    the regime classes differ between two μ (the set its replicas ended in: a μ whose
+    replicas disagree differs from one whose replicas agree), "power-led verdict" where
+    the power-led labels do (a μ without dissipation has none and is left out),
+    "power ×F" where the μ levels' mean dissipated power spreads by more than
+    SPREAD_FACTOR (largest over smallest; "power 0 to X" where one level dissipates
+    nothing). One μ: never."""
     if len(by_mu) < 2:
         return []
     why = []

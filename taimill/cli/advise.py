@@ -173,7 +173,8 @@ def cost_line(req, points: list[dict], workers: int | None) -> str:
     mus = len(req.axes.get("friction.mu", [None]))
     swept = (f"{len(req.axes['plate_rpm'])} plate speeds × {mus} μ level{'s' if mus > 1 else ''} × {req.replicas} "
              f"replica{'s' if req.replicas > 1 else ''}")
-    return (f"sweeping {swept}: {len(points)} points of {points[0]['preset'].duration:g} s, about {span_text(lo)} to {span_text(hi)} of CPU, "
+    return (f"sweeping {swept}: {len(points)} points of {points[0]['preset'].duration:g} s, "
+            f"about {span_text(lo)} to {span_text(hi)} of CPU, "
             f"{span_text(lo / n)} to {span_text(hi / n)} on {n} worker{'s' if n > 1 else ''}")
 
 
@@ -207,14 +208,20 @@ def _range(r: dict, name: str, scale: float = 1.0) -> str:
     return f"{_g(mean, scale)} ({_g(lo, scale)}–{_g(hi, scale)})"
 
 
+def flag(r: dict) -> str:
+    """The "hinges on μ" cell: "yes: class, power ×2.1", "no", or "- (one μ)"."""
+    if r["hinges_on_mu"]:
+        return "yes: " + ", ".join(r["hinges_why"])
+    return "no" if len(r["by_mu"]) > 1 else "- (one μ)"
+
+
 def advice_table(table: list[dict]) -> str:
     """One line per plate speed: dissipated power mean (min–max over replicas and μ),
     regime classes and power-led verdict across μ, impact power, hinges on μ."""
     unit = "W/g" if table and table[0]["power"].endswith("per_g") else "W"
     head = ("Ω rpm", f"P_diss {unit}", "regime class across μ", "power led", "P_I W", "hinges on μ")
-    cells = [(f"{r['plate_rpm']:g}", _range(r, "power"), r["classes_across_mu"], r["power_led_across_mu"], _range(r, "impact_power"),
-              "yes: " + ", ".join(r["hinges_why"]) if r["hinges_on_mu"] else "no" if len(r["by_mu"]) > 1
-              else "- (one μ)") for r in table]
+    cells = [(f"{r['plate_rpm']:g}", _range(r, "power"), r["classes_across_mu"], r["power_led_across_mu"],
+              _range(r, "impact_power"), flag(r)) for r in table]
     widths = [max([len(h)] + [len(c[i]) for c in cells]) for i, h in enumerate(head)]
     right = (True, True, False, False, True, False)
 

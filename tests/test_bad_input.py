@@ -140,6 +140,7 @@ INT_JUNK = {"text": "abc", "fraction": "1.5", "empty": ""}
 RUN = ["run", PRESET, "--out", "{work}/new.zarr"]
 TUI = ["tui", PRESET, "--out-dir", "{work}/rec"]
 SWEEP = ["sweep", PRESET, "--out", "{work}/new.zarr"]
+ADVISE = ["advise", PRESET, "--plate-rpm", "100,200", "--out", "{work}/new.zarr"]
 ANALYSE = ["analyse", "{in}/empty.zarr"]
 REPORT = ["report", "{in}/empty.zarr", "--out", "{work}/rep"]
 RECORD = ["record", "{in}/empty.zarr", "--rrd", "{work}/new.rrd"]
@@ -155,6 +156,7 @@ TYPED_NUMBERS = [
     (SWEEP + ["--ratio", "-2"], "--seed", int), (SWEEP + ["--ratio", "-2"], "--duration", float),
     (SWEEP + ["--ratio", "-2"], "--analysis-start", float), (SWEEP, "--replicas", int), (SWEEP, "--refine-rounds", int),
     (SWEEP, "--workers", int), (SWEEP, "--batch", int),
+    (ADVISE, "--duration", float), (ADVISE, "--powder-mass", float), (ADVISE, "--replicas", int),
     (ANALYSE, "--analysis-start", float), (ANALYSE, "--min-un", float), (ANALYSE, "--sampling-rate", float),
     (REPORT, "--min-un", float), (REPORT, "--sampling-rate", float),
     (RECORD, "--histogram-every", float),
@@ -325,6 +327,20 @@ VALUES = [
     ("sweep --out empty", ["sweep", PRESET, "--ratio", "-2", "--out", ""], ["--out", "empty"]),
     ("sweep --out missing folder", ["sweep", PRESET, "--ratio", "-2", "--out", "{work}/nope/s.zarr"], ["--out", "does not exist"]),
     ("sweep --out under a file", ["sweep", PRESET, "--ratio", "-2", "--out", "{work}/afile/s.zarr"], ["--out", "afile"]),
+    # advise: the measure, the speeds (the thesis' P 4 states no range), μ, replicas, the figure
+    ("advise --measure unknown", ADVISE + ["--measure", "bogus"], ["--measure", "bogus", "dissipated_power"]),
+    ("advise --measure per gram without powder", ADVISE + ["--measure", "specific_power_W_per_g"],
+     ["--measure", "--powder-mass"]),
+    ("advise no speeds on a mill without a range", ["advise", PRESET], ["--plate-rpm", "fritsch-p4", "give the speeds"]),
+    ("advise --plate-rpm outside the mill's", ["advise", PRESET, "--mill", "retsch-pm100", "--plate-rpm", "50,300"],
+     ["plate_rpm", "50", "[100, 650]"]),
+    ("advise --plate-rpm words", ADVISE[:2] + ["--plate-rpm", "fast"], ["--plate-rpm", "fast", "numbers"]),
+    ("advise --mu negative", ADVISE + ["--mu", "0.2,-0.1"], ["friction.mu_s", "-0.1", "[0, 10]"]),
+    ("advise --replicas 0", ADVISE + ["--replicas", "0"], ["--replicas", "[1, 1000]"]),
+    ("advise --workers 0", ADVISE + ["--workers", "0"], ["--workers", "[1, 256]"]),
+    ("advise --figure not png", ADVISE + ["--figure", "{work}/advice.txt"], ["--figure", ".png"]),
+    ("advise --figure existing", ADVISE + ["--figure", "{work}/existing.png"], ["--figure", "--overwrite"]),
+    ("advise --out missing folder", ADVISE[:4] + ["--out", "{work}/nope/a.zarr"], ["--out", "does not exist"]),
     # analyse and report: the options, then the store
     ("analyse --analysis-start negative", ANALYSE + ["--analysis-start", "-1"], ["--analysis-start", "-1"]),
     ("analyse --min-un negative", ANALYSE + ["--min-un", "-1"], ["--min-un", "[0,"]),

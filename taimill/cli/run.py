@@ -108,10 +108,10 @@ def long_run_note(preset) -> str | None:
         return None
     return (f"{steps:.3g} steps of dt = {preset.dt:.3g} s for duration = {preset.duration:g} s; "
             f"at {lo / steps * 1e6:.2g}-{hi / steps * 1e6:.2g} µs of CPU a step for {preset.balls.count} balls "
-            f"this takes about {_span(lo)} to {_span(hi)}")
+            f"this takes about {span_text(lo)} to {span_text(hi)}")
 
 
-def _span(seconds: float) -> str:
+def span_text(seconds: float) -> str:
     for unit, size in (("days", 86400), ("h", 3600), ("min", 60)):
         if seconds >= size:
             return f"{seconds / size:.2g} {unit}"

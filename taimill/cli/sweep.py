@@ -113,12 +113,12 @@ def request(a):
 
 
 def cmd_sweep(a) -> int:
-    from taimill.cli.common import plain as _plain, print_warnings, stderr_console as _stderr_console
+    from taimill.cli.common import plain as _plain, print_warnings
     from taimill.schema import with_units
     from taimill.figures import is_figure
     from taimill.model.files import check_output, reads
     from taimill.analysis.sweep import axis_header
-    from taimill.runs.sweep import content, plan, run_sweep
+    from taimill.runs.sweep import content, plan
     from taimill.store.sweep import writing
 
     req, run_kw = request(a)
@@ -134,23 +134,7 @@ def cmd_sweep(a) -> int:
     with (writing(a.out, req.identity(), content(req, points), overwrite=a.overwrite, inputs=inputs) if a.out
           else contextlib.nullcontext()) as store:
         print_warnings(*(p["preset"] for p in points))  # every distinct one once, after every refusal, before anything runs
-        show_bar = not a.json or sys.stderr.isatty()
-        if show_bar:
-            from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
-            with Progress(TextColumn("sweeping"), BarColumn(), TextColumn("{task.completed:.1f}/{task.total:.1f} mill-s"),
-                          TimeRemainingColumn(), transient=True, console=_stderr_console()) as bar:
-                task = bar.add_task("sweep", total=1.0)  # the real total comes with the first report
-
-                def notice(text):  # above the bar, kept when the bar goes
-                    bar.console.print(f"taimill: {text}", markup=False, highlight=False)
-
-                rows, peaks = run_sweep(req, store, progress=lambda d, t: bar.update(task, completed=d, total=t),
-                                        notice=notice, **run_kw)
-        else:
-            from taimill.cli.run import say
-
-            rows, peaks = run_sweep(req, store, notice=say, **run_kw)
+        rows, peaks = sweeping(req, store, bar=not a.json or sys.stderr.isatty(), **run_kw)
     axes = sweep_axes_of(rows, points)
     rows, groups = with_regimes(rows, axes)
     if a.map:
@@ -175,6 +159,29 @@ def cmd_sweep(a) -> int:
     if a.out:
         print(f"stored in {a.out}")
     return 0
+
+
+def sweeping(req, store, *, bar: bool = True, **run_kw) -> tuple[list[dict], list[dict]]:
+    """taimill.runs.sweep.run_sweep(req, store, **run_kw) under a progress bar on stderr
+    (`bar`), else with its notices as lines on stderr."""
+    from taimill.cli.common import stderr_console
+    from taimill.runs.sweep import run_sweep
+
+    if not bar:
+        from taimill.cli.run import say
+
+        return run_sweep(req, store, notice=say, **run_kw)
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    with Progress(TextColumn("sweeping"), BarColumn(), TextColumn("{task.completed:.1f}/{task.total:.1f} mill-s"),
+                  TimeRemainingColumn(), transient=True, console=stderr_console()) as progress:
+        task = progress.add_task("sweep", total=1.0)  # the real total comes with the first report
+
+        def notice(text):  # above the bar, kept when the bar goes
+            progress.console.print(f"taimill: {text}", markup=False, highlight=False)
+
+        return run_sweep(req, store, progress=lambda d, t: progress.update(task, completed=d, total=t),
+                         notice=notice, **run_kw)
 
 
 def sweep_axes_of(rows: list[dict], points=()):

@@ -170,6 +170,16 @@ def pair_estimate_keys(name: str) -> list[str]:
     return [k for k, text in sources.items() if is_estimate(text) and k in table]
 
 
+def pair_friction_measured(name: str) -> bool:
+    """Whether a pair's Coulomb friction (μ_s and μ_d) is a measurement: a built-in pair
+    neither of whose coefficients is marked an estimate (the thesis' pairs come from its
+    Table 3.3, the file's header says; an estimate's source text says "estimate"). A pair
+    file names no sources, so its friction is not known to be measured."""
+    if name.endswith(".toml") or name not in _materials_db()["pair"]:
+        return False
+    return not {"mu_s", "mu_d"} & set(pair_estimate_keys(name))
+
+
 def pair_estimates(name: str) -> list[str]:
     """Warning lines for a built-in pair's numbers that are estimates (assumptions)."""
     table, sources = _pair_sources(name)

@@ -223,6 +223,17 @@ def cycles(graph) -> list[list[str]]:
     return out
 
 
+def planted(tmp_path: Path, file: str, line: str, dirs=("taimill",)) -> tuple[Path, int]:
+    """A copy of the repository's `dirs` under tmp_path with `line` appended to `file`
+    (its path in the repository): (the copy of the package, the planted line's number)."""
+    for d in dirs:
+        shutil.copytree(PACKAGE.parent / d, tmp_path / d, ignore=shutil.ignore_patterns("__pycache__", "__snapshots__", "golden"))
+    target = tmp_path / file
+    n = len(target.read_text().splitlines()) + 1
+    target.write_text(target.read_text() + line + "\n")
+    return tmp_path / "taimill", n
+
+
 def test_the_package_keeps_its_layers():
     assert violations(PACKAGE) == []
 
@@ -241,11 +252,7 @@ def test_the_package_keeps_its_layers():
     ("store/run.py", "fields.x.from_numpy(x)", "writes the Taichi field fields.x.from_numpy"),
 ])
 def test_a_planted_bad_import_is_named(tmp_path, file, line, expected):
-    root = tmp_path / "taimill"
-    shutil.copytree(PACKAGE, root, ignore=shutil.ignore_patterns("__pycache__"))
-    target = root / file
-    n = len(target.read_text().splitlines()) + 1
-    target.write_text(target.read_text() + line + "\n")
+    root, n = planted(tmp_path, f"taimill/{file}", line)
     found = violations(root)
     parts = expected.format(n=n).split("*")
     assert any(all(part.strip() in v for part in parts) for v in found), found
@@ -389,12 +396,8 @@ def test_only_the_door_imports_taichi():
     ("scripts/bench.py", "import taichi_forge"),
 ])
 def test_a_planted_taichi_import_is_named(tmp_path, file, line):
-    repo = tmp_path / "repo"
-    for d in ("taimill", "tests", "scripts"):
-        shutil.copytree(PACKAGE.parent / d, repo / d, ignore=shutil.ignore_patterns("__pycache__", "__snapshots__", "golden"))
-    target = repo / file
-    n = len(target.read_text().splitlines()) + 1
-    target.write_text(target.read_text() + line + "\n")
+    root, n = planted(tmp_path, file, line, ("taimill", "tests", "scripts"))
+    repo = root.parent
     assert any(v.startswith(f"{file}:{n} imports taichi") for v in outside_the_door(repo)), outside_the_door(repo)
 
 
@@ -406,12 +409,8 @@ def test_a_planted_taichi_import_is_named(tmp_path, file, line):
 ])
 def test_a_restated_computation_is_named(tmp_path, file, line, rule):
     # a second statement of a rule's arithmetic, found by its shape whatever its names
-    root = tmp_path / "taimill"
-    shutil.copytree(PACKAGE, root, ignore=shutil.ignore_patterns("__pycache__"))
-    target = root / file
-    n = len(target.read_text().splitlines()) + 1
-    target.write_text(target.read_text() + line + "\n")
-    mod = module_name(target, root)
+    root, n = planted(tmp_path, f"taimill/{file}", line)
+    mod = module_name(root / file, root)
     assert [v for v in restated_rules(root) if v.startswith(f"{mod}:")] == [
         next(f"{mod}:{n} computes {r} of {RULE_BOOK}" for r in RULE_SHAPES if rule in r)]
 

@@ -6,7 +6,6 @@ recommendation by the measure chosen (taimill.analysis.advise); docs/advise.md."
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import sys
@@ -114,21 +113,12 @@ def values(text: str, option: str) -> list[float]:
 def cmd_advise(a) -> int:
     from taimill.analysis.advise import recommendation, speed_rows, with_best
     from taimill.cli.common import plain, print_warnings
-    from taimill.cli.sweep import sweeping
-    from taimill.figures import is_figure
-    from taimill.model.files import check_output, reads
-    from taimill.runs.sweep import content
-    from taimill.store.sweep import writing
+    from taimill.cli.sweep import sweep_outputs, sweeping
+    from taimill.model.files import reads
 
     with reads() as inputs:
         req, points, mu_line, measure, power = plan_advice(a)
-    if a.out:
-        check_output(a.out, "--out", overwrite=None)
-    if a.figure:
-        check_output(a.figure, "--figure", overwrite=a.overwrite, suffixes=(".png", ".svg", ".pdf"), what="figure",
-                     ours=is_figure, inputs=inputs)
-    with (writing(a.out, req.identity(), content(req, points), overwrite=a.overwrite, inputs=inputs) if a.out
-          else contextlib.nullcontext()) as store:
+    with sweep_outputs(a, req, points, inputs, a.figure, "--figure") as store:
         print_warnings(*(p["preset"] for p in points))
         if a.json:  # the table's header says it otherwise
             print(f"taimill: {mu_line}", file=sys.stderr)

@@ -115,24 +115,14 @@ def request(a):
 def cmd_sweep(a) -> int:
     from taimill.cli.common import plain as _plain, print_warnings
     from taimill.schema import with_units
-    from taimill.figures import is_figure
-    from taimill.model.files import check_output, reads
+    from taimill.model.files import reads
     from taimill.analysis.sweep import axis_header
-    from taimill.runs.sweep import content, plan
-    from taimill.store.sweep import writing
+    from taimill.runs.sweep import plan
 
     req, run_kw = request(a)
     with reads() as inputs:
         points = plan(req)  # every point validated before a store is touched or a kernel runs
-    if a.out:  # its folder must exist and be writable (an existing store: the store's own rules)
-        check_output(a.out, "--out", overwrite=None)
-    if a.map:
-        check_output(a.map, "--map", overwrite=a.overwrite, suffixes=(".png", ".svg", ".pdf"), what="figure",
-                     ours=is_figure, inputs=inputs)
-    # locked; an existing store resumed only with the same content, replaced only by a
-    # finished sweep, and never if it is not a sweep store (store/sweep.py writing)
-    with (writing(a.out, req.identity(), content(req, points), overwrite=a.overwrite, inputs=inputs) if a.out
-          else contextlib.nullcontext()) as store:
+    with sweep_outputs(a, req, points, inputs, a.map, "--map") as store:
         print_warnings(*(p["preset"] for p in points))  # every distinct one once, after every refusal, before anything runs
         rows, peaks = sweeping(req, store, bar=not a.json or sys.stderr.isatty(), **run_kw)
     axes = sweep_axes_of(rows, points)
@@ -159,6 +149,27 @@ def cmd_sweep(a) -> int:
     if a.out:
         print(f"stored in {a.out}")
     return 0
+
+
+def sweep_outputs(a, req, points, inputs, figure: str | None, figure_key: str):
+    """The sweep store of `--out` (a.out) opened for writing, after both outputs were
+    checked: its folder must exist and be writable (an existing store: the store's own
+    rules), and `figure` (the option `figure_key`) replaced only with --overwrite and only
+    if it is a figure taimill drew. Locked; an existing store resumed only with the same
+    content, replaced only by a finished sweep, and never if it is not a sweep store
+    (store/sweep.py writing). A null context without --out."""
+    from taimill.figures import is_figure
+    from taimill.model.files import check_output
+    from taimill.runs.sweep import content
+    from taimill.store.sweep import writing
+
+    if a.out:
+        check_output(a.out, "--out", overwrite=None)
+    if figure:
+        check_output(figure, figure_key, overwrite=a.overwrite, suffixes=(".png", ".svg", ".pdf"), what="figure",
+                     ours=is_figure, inputs=inputs)
+    return (writing(a.out, req.identity(), content(req, points), overwrite=a.overwrite, inputs=inputs) if a.out
+            else contextlib.nullcontext())
 
 
 def sweeping(req, store, *, bar: bool = True, **run_kw) -> tuple[list[dict], list[dict]]:

@@ -130,3 +130,32 @@ def test_only_a_figure_taimill_drew_is_ours(tmp_path, kind):
     plt.close(fig)
     (tmp_path / f"theirs.{kind}").write_bytes({"png": b"\x89PNG\r\n\x1a\n", "svg": b"<svg>", "pdf": b"%PDF-1.4"}[kind] + b"x" * 99)
     assert is_figure(tmp_path / f"ours.{kind}") and not is_figure(tmp_path / f"theirs.{kind}")
+
+
+# 15 balls of 20 mm cannot be placed in the PM 400's 250 ml bowl (at most 13 fit): a
+# refusal that comes once the outputs are open, at the start of the run
+CROWDED = ("--mill", "retsch-pm400", "--jar-volume", 250, "--ball-diameter", 20, "--duration", 0.1)
+
+
+def test_a_run_refused_at_its_start_leaves_nothing_in_the_way_of_the_retry(tmp_path):
+    out, rrd = tmp_path / "pm400.zarr", tmp_path / "pm400.rrd"
+    res = taimill("run", *CROWDED, "--balls", 15, "--out", out, "--rrd", rrd)
+    assert res.returncode == 2 and "at most 13 balls fit" in res.stderr, res.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # no store, no recording, no lock
+    res = taimill("run", *CROWDED, "--balls", 10, "--out", out, "--json")  # the retry needs no --overwrite
+    assert res.returncode == 0, res.stderr
+    assert open_run(out).summary["status"] == "complete"
+
+
+def test_overwrite_replaces_the_empty_store_an_older_taimill_left_but_no_users_folder(tmp_path):
+    empty = tmp_path / "old.zarr"
+    zarr.open_group(empty, mode="w")  # zarr.json alone, as a refused run used to leave
+    res = taimill("run", *CROWDED, "--balls", 10, "--out", empty)
+    assert res.returncode == 2 and "--overwrite" in res.stderr
+    assert taimill("run", *CROWDED, "--balls", 10, "--out", empty, "--overwrite").returncode == 0
+    assert open_run(empty).summary["status"] == "complete"
+    mine = tmp_path / "mine.zarr"
+    zarr.open_group(mine, mode="w").attrs["note"] = "a user's group"
+    res = taimill("run", *CROWDED, "--balls", 10, "--out", mine, "--overwrite")
+    assert res.returncode == 2 and "not a run store written by taimill" in res.stderr
+    assert zarr.open_group(mine, mode="r").attrs["note"] == "a user's group"

@@ -51,10 +51,14 @@ def cmd_run(a) -> int:
     with Outputs() as outputs:
         sink = NullSink()
         if a.out:
-            from taimill.store.layout import is_run_store
+            from taimill.store.layout import is_run_store, is_unstarted_store
             from taimill.store.writer import ZarrSink
 
-            sink = ZarrSink(outputs.add(a.out, overwrite=a.overwrite, what="run", kind="run store", ours=is_run_store,
+            # a run refused before it started (balls that do not fit) leaves no store in
+            # the way of its retry: kept only once it holds its config (is_run_store); an
+            # empty one an older taimill left is replaced like a run store
+            sink = ZarrSink(outputs.add(a.out, overwrite=a.overwrite, what="run", kind="run store",
+                                        ours=lambda p: is_run_store(p) or is_unstarted_store(p), keep=is_run_store,
                                         inputs=inputs))
         if a.rrd:
             from taimill.cli.record import is_recording

@@ -148,6 +148,18 @@ def frame_chunk_rows(rate) -> int:
     return int(min(hi, max(lo, 1 << max(0, math.ceil(math.log2(rate * FRAME_CHUNK_SECONDS))))))
 
 
+def is_unstarted_store(path) -> bool:
+    """True if `path` is a zarr group that holds nothing: its zarr.json alone, without
+    attributes (what an older taimill left when a run was refused after its store was
+    created, e.g. balls that do not fit; replacing it loses nothing)."""
+    try:
+        entries = [e.name for e in Path(path).iterdir()]
+        meta = json.loads((Path(path) / "zarr.json").read_text())
+        return entries == ["zarr.json"] and meta.get("node_type") == "group" and not meta.get("attributes")
+    except (OSError, ValueError, AttributeError, TypeError):
+        return False
+
+
 def is_run_store(path) -> bool:
     """True if `path` is a run store taimill wrote: a zarr group whose attributes hold
     the schema_version and config ZarrSink.start writes first (also a killed or

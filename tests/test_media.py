@@ -213,3 +213,27 @@ def test_the_ball_diameter_option_is_the_radius_key_halved():
     given = overrides(a)
     assert (given["balls.diameter_mm"], given["balls.material"], given["jar_material"]) == (12.0, "steel-c1020", "aisi-304")
     assert load_preset(HM_STEEL, given) == load_preset(HM_STEEL)
+
+
+def test_every_pair_the_listing_shows_can_be_looked_up_with_its_sources():
+    # `taimill materials` lists the friction pairs beside the materials; looking one up by
+    # name was refused ("must be one of" the materials). Each number of a pair now comes
+    # with its source, an estimate marked so.
+    from taimill.model.materials import pair_estimate_keys, pair_names
+
+    root = Path(__file__).resolve().parent.parent
+    listing = subprocess.run([sys.executable, "-m", "taimill", "materials"], cwd=root, capture_output=True, text=True,
+                             timeout=120).stdout
+    for name in pair_names():
+        assert f"\n{name} " in listing
+        res = subprocess.run([sys.executable, "-m", "taimill", "materials", name], cwd=root, capture_output=True,
+                             text=True, timeout=120)
+        assert res.returncode == 0, res.stderr
+        lines = res.stdout.splitlines()
+        assert lines[0].startswith(f"{name} (friction pair)")
+        numbers = [line for line in lines[1:] if not line.startswith("            ")]
+        sources = [line.strip() for line in lines[1:] if line.startswith("            ")]
+        assert len(numbers) == len(sources) == 4 and "no source given" not in sources
+        assert sum("(estimate)" in line for line in numbers) == len(pair_estimate_keys(name))
+    assert "thesis Table 5.2" in subprocess.run([sys.executable, "-m", "taimill", "materials", "zirconia-efavirenz"],
+                                                cwd=root, capture_output=True, text=True, timeout=120).stdout

@@ -270,9 +270,35 @@ def material_row(data) -> dict:
             "sources": dict(data.sources), "estimates": data.estimates()}
 
 
+def pair_row(name: str) -> dict:
+    """A built-in friction pair as `taimill materials PAIR` shows it: μ_s, μ_d, the
+    transition speeds (mm/s), its measured contact set (None: derived from the
+    materials), and the source of each number (estimates marked)."""
+    from taimill.model.materials import load_friction, pair_estimate_keys, pair_source_texts
+
+    friction, contact = load_friction(name, "command line")
+    return {"name": name, "mu_s": friction.mu_s, "mu_d": friction.mu_d, "v_s_mm_s": friction.v_s * 1e3,
+            "v_d_mm_s": friction.v_d * 1e3, "contact": contact or None, "estimates": pair_estimate_keys(name),
+            "sources": pair_source_texts(name)}
+
+
+def show_pair(name: str, as_json: bool) -> int:
+    r = pair_row(name)
+    if as_json:
+        print(json.dumps(r, indent=1, ensure_ascii=False))
+        return 0
+    print(f"{name} (friction pair): measured contact set {r['contact'] or '(none: derived from the materials)'}")
+    for key, label in (("mu_s", "μ_s"), ("mu_d", "μ_d"), ("v_s_mm_s", "v_s mm/s"), ("v_d_mm_s", "v_d mm/s")):
+        mark = "  (estimate)" if key in r["estimates"] else ""
+        print(f"  {label:9} {r[key]:>8g}{mark}\n            {r['sources'].get(key, 'no source given')}")
+    return 0
+
+
 def cmd_materials(a) -> int:
     from taimill.model.materials import load_friction, material_data, material_names, pair_estimate_keys, pair_names
 
+    if a.name in pair_names():  # the listing shows the pairs beside the materials: each can be looked up
+        return show_pair(a.name, a.json)
     names = [a.name] if a.name else material_names()
     rows = [material_row(material_data(n, "command line", "material")) for n in names]
     if a.json:

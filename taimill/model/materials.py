@@ -164,6 +164,11 @@ def _pair_sources(name: str) -> tuple[dict, dict]:
     return table, sources
 
 
+def pair_source_texts(name: str) -> dict:
+    """{key: where the number comes from} of a built-in pair ({} for a pair file)."""
+    return dict(_pair_sources(name)[1])
+
+
 def pair_estimate_keys(name: str) -> list[str]:
     """The keys of a built-in pair whose numbers are estimates (assumptions)."""
     table, sources = _pair_sources(name)

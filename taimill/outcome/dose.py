@@ -75,5 +75,5 @@ def shear_keys(summary: dict, wall_area_m2: float) -> dict:
     wall = sum(friction.get(k, 0.0) for k in WALL_KINDS)
     dissipated = summary.get("dissipated_power", math.nan)
     return {"shear_power_persistent_W": total,
-            "shear_share": total / dissipated if dissipated else math.nan,
+            "shear_share": min(total / dissipated, 1.0) if dissipated else math.nan,  # a part ≤ the whole: rounding
             "shear_power_persistent_wall_W_per_m2": wall / wall_area_m2 if wall_area_m2 > 0 else math.nan}

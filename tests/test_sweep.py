@@ -560,3 +560,16 @@ def test_text_axes_are_curves_with_one_legend_entry_each_or_categories_on_x():
     ax = fig.axes[0]
     assert ax.get_xlabel() == "jar" and [tk.get_text() for tk in ax.get_xticklabels()] == ["CY", "HM", "T"]
     plt.close(fig)
+
+
+def test_the_shared_line_lists_only_what_every_point_shares():
+    # a filling gives each bowl volume its own ball count: the line said "23 balls" while
+    # the 250 ml points had 72; a column that varies with an axis is shown per row
+    from taimill.cli.sweep import sweep_table
+
+    rows = [{"point": i, "jar": j, "balls": b, "pair": "dry-ceramic-powder", "ratio": -1.0, "plate_rpm": 400.0,
+             "seed": 1, "dissipated_power": 1.0 + i, "regime": "rolling", "regime_class": "sliding bed"}
+            for i, (j, b) in enumerate([("retsch-80ml", 23), ("retsch-250ml", 72)])]
+    first, head, *lines = sweep_table(rows).splitlines()
+    assert first == "every point: dry-ceramic-powder, Ω = 400 rpm, K = -1"
+    assert "balls" in head and lines[0].split()[2] == "23" and lines[1].split()[2] == "72"

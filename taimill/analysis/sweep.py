@@ -90,7 +90,8 @@ class SweepAxes:
     """How a sweep is drawn: `x` the column on the x axis; `y` a second numeric column
     when exactly two numeric columns vary (the sweep is then also a map, x by y);
     `curves` every other varying column (one curve, or one map panel, per combination
-    of their values); `fixed` the HEADLINE columns that do not vary."""
+    of their values); `fixed` the HEADLINE columns that do not vary (one value in every
+    row); `companions` (companion_columns) those that vary with an axis."""
 
     x: str
     y: str | None
@@ -114,8 +115,17 @@ def sweep_axes(table, candidates=()) -> SweepAxes:
     else:
         x = varying[0] if varying else "ratio"
     y = next((c for c in numeric if c != x), None) if len(numeric) == 2 else None
-    fixed = tuple(c for c in HEADLINE if c in table and c not in varying and c != x and len(table[c]))
+    # only what every row shares: a column that varies with an axis (the ball count a
+    # filling gives each bowl volume) is not an axis, and not one value either
+    fixed = tuple(c for c in HEADLINE if c in table and c not in varying and c != x and len(set(codes(table[c]))) == 1)
     return SweepAxes(x, y, tuple(c for c in varying if c != x), fixed, bool(varying) and not numeric)
+
+
+def companion_columns(table, axes: "SweepAxes") -> list[str]:
+    """HEADLINE columns that vary over the rows without being an axis: they vary with one
+    (the ball count a filling gives each bowl volume), so a table shows them per row."""
+    return [c for c in HEADLINE if c in table and c not in axes.columns and c not in axes.fixed
+            and len(set(codes(table[c]))) > 1]
 
 
 def axis_header(column: str) -> str:

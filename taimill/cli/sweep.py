@@ -249,9 +249,12 @@ def headline(rows: list[dict], axes) -> str:
 def sweep_table(rows: list[dict], axes=None) -> str:
     """The printed sweep: a line of what every point shares, then one line per point ×
     replica against the swept values; the whole mill's station counts below."""
+    from taimill.analysis.sweep import axis_header, axis_scale, companion_columns
+
     axes = axes or sweep_axes_of(rows)
     fixed = headline(rows, axes)
-    text = (f"every point: {fixed}\n" if fixed else "") + table(rows, point_columns(axes) + COLUMNS)
+    companions = tuple((c, axis_header(c), axis_scale(c), "g") for c in companion_columns(columns_of(rows), axes))
+    text = (f"every point: {fixed}\n" if fixed else "") + table(rows, point_columns(axes) + companions + COLUMNS)
     text += friction_led_line(rows)
     stations = sorted({r["stations"] for r in rows if isinstance(r.get("stations"), (int, float)) and r["stations"] > 0})
     if stations:

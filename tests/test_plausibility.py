@@ -134,3 +134,40 @@ def test_a_pairs_friction_used_for_other_materials_is_said_once(tmp_path):
         path = Path(_preset(tmp_path, top))
         path.write_text(path.read_text().replace('material = "steel-c1020"', 'material = "zirconia"'))
         assert len([w for w in load_preset(str(path)).warnings if w.startswith("friction of pair")]) == said
+
+
+# metres typed as millimetres: 0.01 mm zirconia balls in a PM 100 bowl, 6 s (7.3·10⁹ steps)
+SLIP = ("--mill", "retsch-pm100", "--jar-volume", "80", "--jar-material", "zirconia", "--ball-material", "zirconia",
+        "--balls", "25", "--pair", "zirconia-zirconia", "--plate-rpm", "400", "--ball-diameter", "0.01", "--duration", "6")
+
+
+def test_a_unit_slip_that_would_run_for_hours_is_refused_unless_asked_for(tmp_path):
+    # it was accepted, announced 9·10⁸ steps and sat compiling for minutes
+    from taimill.cli.run import UNASKED_SECONDS, cpu_estimate, unasked_limit
+
+    out = tmp_path / "slip.zarr"
+    res = subprocess.run([sys.executable, "-m", "taimill", "run", *SLIP, "--out", str(out)], cwd=ROOT,
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2 and not out.exists() and not list(tmp_path.iterdir())
+    line, = [ln for ln in res.stderr.splitlines() if ln.startswith("taimill: error:")]
+    assert "--duration" in line and "pass --yes" in line and "0.01 mm diameter" in line
+    dry = subprocess.run([sys.executable, "-m", "taimill", "run", *SLIP, "--dry-run", "--out", str(out)], cwd=ROOT,
+                         capture_output=True, text=True, timeout=120)
+    assert dry.returncode == 0 and "nothing run (--dry-run)" in dry.stdout and " h " in dry.stdout and not out.exists()
+    overrides = {"mill": "retsch-pm100", "jar_volume_ml": 80, "jar_material": "zirconia", "balls.material": "zirconia",
+                 "balls.count": 25, "pair": "zirconia-zirconia", "plate_rpm": 400, "balls.diameter_mm": 0.01, "duration": 6}
+    preset = load_preset(CY, overrides)
+    assert cpu_estimate(preset)[1] > UNASKED_SECONDS
+    unasked_limit(preset, yes=True)  # --yes: the user meant it
+    with pytest.raises(ConfigError):
+        unasked_limit(preset, yes=False)
+
+
+@pytest.mark.parametrize("path", PRESETS, ids=lambda p: p.stem)
+def test_every_shipped_preset_runs_without_being_asked_or_says_why(path):
+    from taimill.cli.run import UNASKED_SECONDS, cpu_estimate
+
+    preset = load_preset(path)
+    hours = cpu_estimate(preset)[1] / 3600
+    # the bead presets are the point of their hours (docs/performance.md): they need --yes
+    assert (hours * 3600 <= UNASKED_SECONDS) or "beads" in path.stem, (path.stem, hours)

@@ -17,6 +17,8 @@ def register(sub) -> None:
     r.add_argument("--overwrite", action="store_true", help="replace an existing --out store or --rrd file")
     r.add_argument("--rrd", type=path_text, help="rerun recording to write (RUN.rrd); open it with `taimill view RUN.rrd`")
     r.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
+    r.add_argument("--yes", action="store_true", help="run even when the estimate is over an hour of CPU (else refused)")
+    r.add_argument("--dry-run", action="store_true", help="check everything and print the run's estimate; simulate nothing")
     add_overrides(r)
     r.set_defaults(fn=cmd_run)
 
@@ -34,6 +36,10 @@ def cmd_run(a) -> int:
             preset = _with_status(f"reading {a.preset}…", load_preset, a.preset, overrides(a))
         else:
             preset = load_preset(a.preset, overrides(a))
+    if a.dry_run:
+        print(f"taimill: {preset.source}: {estimate_text(preset)}; nothing run (--dry-run)")
+        return 0
+    unasked_limit(preset, a.yes)
     if a.out:  # its folder must exist and be writable (an existing store: Output refuses it without --overwrite)
         from taimill.model.files import check_output
 
@@ -102,17 +108,44 @@ LONG_SECONDS = 120.0  #: CPU seconds (the low estimate) from which `run` says ho
 STEP_US, BALL_US = 0.1, (0.025, 0.13)
 
 
+# CPU seconds (the low estimate) above which a run needs --yes: a unit slip (a ball
+# diameter of 0.01 typed for 10 mm) makes a run of 10⁹ steps that nobody meant to start.
+UNASKED_SECONDS = 3600.0
+
+
+def cpu_estimate(preset) -> tuple[float, float, float]:
+    """(steps, low, high CPU seconds) of a run of `preset` at docs/performance.md's cost
+    per step (STEP_US + BALL_US per ball)."""
+    steps = preset.duration / preset.dt
+    lo, hi = (steps * (STEP_US + b * preset.balls.count) * 1e-6 for b in BALL_US)
+    return steps, lo, hi
+
+
+def estimate_text(preset) -> str:
+    """"2.4e+07 steps of dt = … for duration = … s; at … µs … this takes about 1 min to 5 min"."""
+    steps, lo, hi = cpu_estimate(preset)
+    return (f"{steps:.3g} steps of dt = {preset.dt:.3g} s for duration = {preset.duration:g} s; "
+            f"at {lo / steps * 1e6:.2g}-{hi / steps * 1e6:.2g} µs of CPU a step for {preset.balls.count} balls "
+            f"this takes about {span_text(lo)} to {span_text(hi)}")
+
+
+def unasked_limit(preset, yes: bool) -> None:
+    """Refuse a run estimated at more than UNASKED_SECONDS of CPU unless `yes` (--yes),
+    naming the duration, the estimate and the ball size (whose unit is the usual slip)."""
+    if yes or cpu_estimate(preset)[1] <= UNASKED_SECONDS:
+        return
+    from taimill.errors import ConfigError
+
+    raise ConfigError("command line", "--duration", preset.duration,
+                      f"{estimate_text(preset)}: over {span_text(UNASKED_SECONDS)}; pass --yes to run it, or check the "
+                      f"balls' size ({preset.balls.radius * 2e3:g} mm diameter: --ball-diameter is in mm) and the duration")
+
+
 def long_run_note(preset) -> str | None:
     """For a run expected to take more than a few minutes (even at the low end of
     docs/performance.md's CPU cost per step, more than LONG_SECONDS), a line that says
     how many steps and roughly how long they take; else None."""
-    steps = preset.duration / preset.dt
-    lo, hi = (steps * (STEP_US + b * preset.balls.count) * 1e-6 for b in BALL_US)
-    if lo <= LONG_SECONDS:
-        return None
-    return (f"{steps:.3g} steps of dt = {preset.dt:.3g} s for duration = {preset.duration:g} s; "
-            f"at {lo / steps * 1e6:.2g}-{hi / steps * 1e6:.2g} µs of CPU a step for {preset.balls.count} balls "
-            f"this takes about {span_text(lo)} to {span_text(hi)}")
+    return estimate_text(preset) if cpu_estimate(preset)[1] > LONG_SECONDS else None
 
 
 def span_text(seconds: float) -> str:

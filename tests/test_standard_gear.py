@@ -125,15 +125,19 @@ def _taimill(*args, timeout=600):
                           timeout=timeout)
 
 
-def test_the_pm100_zirconia_crescent_is_a_friction_led_hopping_bed():
+def test_the_pm100_zirconia_crescent_is_a_friction_led_hopping_bed(tmp_path):
     # the measured zirconia contact set, 2.5 s, window 1.5–2.5 s (≈ 3 s CPU): the crescent
     # hops in place (impact chord 0.085, flight fraction 0.90) and friction takes 97 %
-    res = _taimill("run", *PM100, "--pair", "zirconia-zirconia", "--duration", 2.5, "--analysis-start", 1.5, "--json")
+    out = tmp_path / "pm100.zarr"
+    res = _taimill("run", *PM100, "--pair", "zirconia-zirconia", "--duration", 2.5, "--analysis-start", 1.5, "--json",
+                   "--out", out)
     assert res.returncode == 0, res.stderr
     s = json.loads(res.stdout)
     assert s["regime_class"] == "hopping bed" and s["regime"] != "cataracting"
     assert s["regime_criteria"]["impact_chord"] < CATARACT_CHORD < 0.2 and s["regime_criteria"]["flight_fraction"] > 0.8
     assert s["power_led"] == "friction-led" and s["friction_share"] > 0.95
+    told = _taimill("analyse", out)  # the analysis of the store leads the same way
+    assert told.returncode == 0 and told.stdout.splitlines()[1].startswith("friction-led: friction takes 9")
 
 
 def test_the_p7_sweep_shows_dissipated_beside_impact_power_and_says_friction_led(tmp_path):

@@ -13,7 +13,7 @@ from taimill.analysis.rungeometry import RunGeometry
 from taimill.analysis.sampled import SampledStats
 from taimill.analysis.spatial import RadialDensity, WallMap, contact_map
 from taimill.analysis.spectra import event_keys as spectra_event_keys
-from taimill.analysis.summary import Summary
+from taimill.analysis.summary import Summary, power_lead
 from taimill.errors import ConfigError, StoreError
 from taimill.model.mechanisms import STRESS_MIN_UN
 from taimill.model.spectra import from_rows
@@ -94,6 +94,7 @@ class RunAnalysis:
             "dissipated_power": energy["dissipated_power"],
             "energy_balance_error": energy["energy_balance_error"],
             "drive_work": energy["drive_work"],
+            **power_lead(energy),
             **p["mill_power"],
             "g_r": {"r_edges": edges.tolist(), "g": self.density.g.tolist()},
             "randomness_index": p["randomness_index"],

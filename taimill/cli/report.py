@@ -188,8 +188,11 @@ def _f(v, scale=1.0, unit=""):
 
 def text_report(q: dict) -> str:
     e, s, a = q["event_estimator"], q["sampled_estimator"], q.get("all_contacts_estimator", {})
+    from taimill.cli.common import lead_line
+
+    lead = lead_line({**q, "impact_power": e.get("impact_power")}).rstrip("\n")
     lines = [f"status: {q['status']}; window {q['analysis_window'][0]:g}–{q['analysis_window'][1]:g} s; "
-             f"K = {q['ratio']:.4g}, Ω = {q['plate_rpm']:.4g} rpm",
+             f"K = {q['ratio']:.4g}, Ω = {q['plate_rpm']:.4g} rpm", *([lead] if lead else []),
              f"{'':34} {'stress events':>14} {'all contacts':>14} {s.get('estimator', 'sampled'):>16}"]
     rows = (("events (sampled: points)", "events", "points", 1, ""),
             ("impact power E_I/τ", "impact_power", "impact_power", 1, " W"),

@@ -435,7 +435,7 @@ def print_machine(m: dict):
     print(f"taimill benchmark, {time.strftime('%Y-%m-%d %H:%M:%S')}")
     print(f"machine:  {m['cpus']} CPUs (os.cpu_count), {m['processor']}, {m['machine']}, {m['platform']}")
     print(f"memory:   {m['mem_total_mib'] / 1024:.1f} GiB, {m['mem_available_mib'] / 1024:.1f} GiB available")
-    print(f"software: Python {m['python']}, taichi {m['taichi']}, numpy {m['numpy']}")
+    print(f"software: Python {m['python']}, {m['taichi']}, numpy {m['numpy']}")
     print("load:     %.2f %.2f %.2f (1, 5, 15 min averages at start)" % m["load_start"])
 
 

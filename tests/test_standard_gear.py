@@ -194,3 +194,28 @@ def test_the_pm100_powder_bed_keeps_one_class_over_seeds_1_to_4():
     rows = json.loads(res.stdout)
     assert len(rows) == 4 and {r["regime_class"] for r in rows} == {"sliding bed"}
     assert all(r["power_led"] == "friction-led" and r["events"] == 0 for r in rows)
+
+
+def test_power_per_gram_is_where_users_look_sweep_table_figure_and_analyse(tmp_path):
+    # it was in run's summary and sweep --json only; sweep had no --powder-mass
+    # (2 points of 1.5 s, ≈ 6 s CPU, then a run of 1.5 s)
+    out = tmp_path / "s.zarr"
+    res = _taimill("sweep", *PM100[:-2], "--plate-rpm", "300,500", "--pair", "zirconia-zirconia", "--duration", 1.5,
+                   "--analysis-start", 1, "--powder-mass", 10, "--out", out)
+    assert res.returncode == 0, res.stderr
+    head = res.stdout.splitlines()[1]
+    assert "P_diss/g W/g" in head
+    from taimill.store.sweep import open_sweep
+
+    table = open_sweep(out).table()
+    assert table["specific_power_W_per_g"] == pytest.approx(table["dissipated_power"] / 10.0)
+    figs = tmp_path / "figs"
+    assert _taimill("report", out, "--out", figs).returncode == 0 and (figs / "specific_power.png").exists()
+    run = tmp_path / "r.zarr"
+    assert _taimill("run", *PM100, "--pair", "zirconia-zirconia", "--duration", 1.5, "--analysis-start", 1,
+                    "--powder-mass", 10, "--out", run).returncode == 0
+    text = _taimill("analyse", run).stdout
+    assert "per g of powder (10 g): dissipated" in text
+    q = json.loads(_taimill("analyse", run, "--json").stdout)
+    assert q["specific_power_W_per_g"] == pytest.approx(q["dissipated_power"] / 10.0)
+    assert q["units"]["specific_power_W_per_g"] == "W/g"

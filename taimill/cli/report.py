@@ -67,8 +67,12 @@ def _open(a):
 
 def cmd_analyse(a) -> int:
     from taimill.cli.common import plain as _plain
+    from taimill.outcome.dose import dose_keys
+    from taimill.schema import with_units
 
-    q = _open(a).quantities()
+    analysis = _open(a)
+    q = analysis.quantities()
+    q = with_units(q | dose_keys(q, analysis.store.config))  # per gram of powder, where the run names its powder
     if a.json:
         print(json.dumps(_plain(q)))
         return 0
@@ -212,6 +216,9 @@ def text_report(q: dict) -> str:
                      f"{_f(s.get(ks), scale, unit):>16}")
     if e.get("min_un"):
         lines.append(f"stress events: onset u̇n ≥ {e['min_un'] * 1e3:g} mm/s ({e['events_below_threshold']} events below)")
+    if isinstance(q.get("specific_power_W_per_g"), float):
+        lines.append(f"per g of powder ({q['powder_mass_g']:g} g): dissipated {_f(q['specific_power_W_per_g'], 1, ' W/g')}, "
+                     f"in impacts {_f(q.get('specific_power_impact_W_per_g'), 1, ' W/g')}")
     if q.get("main_sink"):
         m = q["main_sink"]
         lines.append(f"dissipated in impacts {_f(q.get('dissipated_power_impact'), 1, ' W')}, in persistent contacts "

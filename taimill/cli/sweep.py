@@ -23,7 +23,8 @@ COLUMNS = (("seed", "seed", 1, "d"),
            ("mean_se", "SE mJ", 1e3, ".4g"), ("mean_se_normal", "SE_n mJ", 1e3, ".4g"),
            ("mean_se_tangential", "SE_t mJ", 1e3, ".4g"), ("impact_power", "P_I W", 1, ".4g"),
            ("impact_power_mill", "P_I mill W", 1, ".4g"), ("dissipated_power", "P_diss W", 1, ".4g"),
-           ("dissipated_power_mill", "P_diss mill W", 1, ".4g"), ("friction_share", "friction", 1, ".2f"),
+           ("dissipated_power_mill", "P_diss mill W", 1, ".4g"), ("specific_power_W_per_g", "P_diss/g W/g", 1, ".4g"),
+           ("friction_share", "friction", 1, ".2f"),
            ("randomness_index", "1/σ", 1, ".3g"),
            ("wall_lag", "wall lag", 1, ".3g"), ("regime", "regime", None, "s"), ("regime_class", "class", None, "s"),
            ("wall_seconds", "wall s", 1, ".1f"))
@@ -55,6 +56,8 @@ def register(subparsers) -> None:
     g.add_argument("--refine-rounds", type=integer, default=2, help="refinement rounds, each halving the spacing (default 2)")
     o = s.add_argument_group("run overrides (every point)")
     o.add_argument("--seed", type=integer, help="seed of the random ball placement of the first replica (integer ≥ 0)")
+    o.add_argument("--powder-mass", type=number, metavar="G",
+                   help="powder charged per jar (g): the table and figures then give the power per gram (recorded, not simulated)")
     o.add_argument("--duration", type=number, help="simulated seconds per point")
     o.add_argument("--analysis-start", type=number, help="start of the analysis window (s)")
     o.add_argument("--dt", help="time step in s, or 'auto' (per point)")
@@ -92,7 +95,8 @@ def request(a):
             except OverflowError:  # A:B:STEP whose count of values is not even a finite number
                 raise ConfigError("command line", opt, text, f"a range A:B:STEP of at most {MAX_POINTS} values") from None
     overrides = {k: v for k, v in {"seed": a.seed, "duration": a.duration, "analysis_start": a.analysis_start,
-                                    "dt": dt_option(a.dt), "law": a.law}.items() if v is not None}
+                                    "dt": dt_option(a.dt), "law": a.law, "powder.mass_g": a.powder_mass}.items()
+                 if v is not None}
     if a.scheduler and a.workers is not None:
         raise ConfigError("command line", "--workers", a.workers, "not used with --scheduler (the cluster's workers run the chunks)")
     if a.workers is not None and not 1 <= a.workers <= 256:

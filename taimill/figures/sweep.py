@@ -54,6 +54,8 @@ FIGURES = (
     ("normal_fraction", "Normal share of the stress energy", [("normal_fraction", "SE_n / SE")], "normal fraction", 1.0),
     ("dissipation", "Dissipated power by class: impacts and persistent contacts (normal and friction work), one jar",
      [("dissipated_power_impact", "impacts"), ("dissipated_power_persistent", "persistent contacts")], "dissipated power (W)", 1.0),
+    ("specific_power", "Dissipated power per gram of powder, one jar (with --powder-mass)",
+     [("specific_power_W_per_g", "all contacts"), ("specific_power_impact_W_per_g", "in impacts")], "power per gram (W/g)", 1.0),
     ("shear", "Gentle / shear view: friction power of persistent contacts per m² of jar wall",
      [("shear_power_persistent_wall_W_per_m2", "persistent friction on the wall")], "power per wall area (W/m²)", 1.0),
 )
@@ -63,10 +65,15 @@ MIXED_LABEL = "mean over replicas in different regimes"
 LEGEND_WIDTH = 2.5  # inches added to a figure for the legends outside its panels
 
 
+def figures_of(table: dict) -> list[tuple]:
+    """The FIGURES a sweep table has data for: the per-gram one only with a powder mass."""
+    return [f for f in FIGURES if f[0] != "specific_power" or "specific_power_W_per_g" in table]
+
+
 def figure_stems(table: dict, overlay: bool = False) -> list[str]:
     """The file stems report_sweep writes for this sweep table."""
     ax = sweep_axes(table)
-    return ([f[0] for f in FIGURES] + ["regimes", "energy_spectra"] + ([m[0] for m in MAPS] if ax.y else [])
+    return ([f[0] for f in figures_of(table)] + ["regimes", "energy_spectra"] + ([m[0] for m in MAPS] if ax.y else [])
             + (["overlay"] if overlay else []))
 
 
@@ -93,7 +100,7 @@ def report_sweep(path, out_dir, fmt: str = "png", overlay=None) -> list[Path]:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
-    for stem, title, panels, ylabel, scale in FIGURES:
+    for stem, title, panels, ylabel, scale in figures_of(table):
         fig = sweep_figure(table, title, panels, ylabel, scale, peaks, axes=axes)
         written.append(_save(fig, out_dir / f"{stem}.{fmt}"))
     written.append(_save(_regime_figure(table, axes), out_dir / f"regimes.{fmt}"))

@@ -15,7 +15,7 @@ OUT    ?= runs/$(basename $(notdir $(PRESET))).zarr
 OK_PY  := import sys; sys.exit(not (3, 10) <= sys.version_info[:2] <= (3, 14))
 PYTHON ?= $(or $(shell for p in python3 python3.14 python3.13 python3.12 python3.11 python3.10; do $$p -c '$(OK_PY)' >/dev/null 2>&1 && { echo $$p; break; }; done),python3)
 
-.PHONY: run test test-forge bench
+.PHONY: run test test-fresh test-forge bench
 
 $(PY):
 	@$(PYTHON) -c 'import sys; v = sys.version_info[:2]; sys.exit(0 if (3, 10) <= v <= (3, 14) else "taimill needs Python 3.10 to 3.14 (neither taichi nor taichi-forge has wheels for %d.%d); install one and give it: make run PYTHON=python3.12" % v)'
@@ -37,6 +37,15 @@ run: $(VENV)/.installed-run
 # pytest exits 5 when it collects nothing: that is not a failure of the suite.
 test: $(VENV)/.installed-test
 	$(PY) -m pytest -q -n auto --dist loadfile $(PYTEST_ARGS); rc=$$?; if [ $$rc -eq 5 ]; then rc=0; fi; exit $$rc
+
+# A fresh machine (CI runs it after `test`): the tests that read what the kernel cache and
+# taimill's compile records hold, with HOME and Taichi's cache folder empty (a run of the
+# suite on a machine that had compiled before hid a KeyError a fresh one raised).
+FRESH_TESTS := tests/test_messages.py
+test-fresh: $(VENV)/.installed-test
+	rm -rf .fresh && mkdir -p .fresh/home
+	HOME=$(CURDIR)/.fresh/home TI_OFFLINE_CACHE_FILE_PATH=$(CURDIR)/.fresh/cache/ticache $(PY) -m pytest -q -p no:cacheprovider $(FRESH_TESTS)
+	rm -rf .fresh
 
 # The second door (CI runs it after `test`): the golden runs, the neighbour tests and the
 # door's own tests on the fork taichi-forge, which Python 3.14 gets instead of taichi, so

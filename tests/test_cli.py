@@ -56,7 +56,7 @@ def test_run_without_json_prints_a_table():
     assert res.returncode == 0, res.stderr
     assert "impact power" in res.stdout and "energy balance error" in res.stdout
     # the regime as the regime map splits it, and powers of one jar and of the whole mill (the P 4: 2 stations)
-    assert "class (regime map: 6 classes)" in res.stdout and "wall lag" in res.stdout
+    assert "class (6, the plate frame too)" in res.stdout and "wall lag" in res.stdout
     assert "one jar" in res.stdout and "whole mill (2 stations)" in res.stdout
 
 

@@ -130,7 +130,7 @@ def test_the_run_summary_has_the_regime_class_and_wall_lag(store):
     if s["regime"] != "rolling" and s["regime_class"] != "hopping bed":
         assert s["regime_class"] == s["regime"]
     text = summary_table(s)
-    assert "class (regime map: 6 classes)" in text and "wall lag" in text and s["regime_class"] in text
+    assert "class (6, the plate frame too)" in text and "wall lag" in text and s["regime_class"] in text
 
 
 def test_the_balance_of_a_bed_settling_in_a_jar_at_rest_is_relative_to_what_it_dissipated():

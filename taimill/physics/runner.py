@@ -50,6 +50,17 @@ LAUNCH_SECONDS = 1.0
 # of LAUNCH_SECONDS at the mill's frame rate, within these bounds. Dense trajectories
 # (10⁵ frames/s) otherwise cut launches to 2000 steps, each paying a drain.
 FRAME_CAPACITY = (256, 32768)
+# CPU seconds a fused launch may take at the high end of the measured cost per step
+# (step_cost): the longest wait for an interrupt between launches.
+LAUNCH_WALL_SECONDS = 0.5
+# µs of CPU per mill-step and per ball-step at the high end measured in docs/performance.md
+STEP_US, BALL_US = 0.1, 0.13
+
+
+def step_cost(specs) -> float:
+    """CPU seconds of one step of the fused launch of `specs` at the high end of the cost
+    per step (STEP_US + BALL_US per ball, every mill)."""
+    return sum(STEP_US + BALL_US * s.n for s in specs) * 1e-6
 _engines: dict = {}
 
 
@@ -268,6 +279,9 @@ class Runner:
         room = self.engine.F.frame_capacity * every
         if mode == "fused":
             steps = max(10_000, int(LAUNCH_SECONDS / min(s.dt for s in specs)))
+            # and at most ≈ LAUNCH_WALL_SECONDS of CPU: Ctrl-C and SIGTERM are seen between
+            # launches, and a launch of one simulated second of 7200 beads took minutes
+            steps = min(steps, max(1000, int(LAUNCH_WALL_SECONDS / step_cost(specs))))
             self.steps_per_launch = max(1, min(steps, room))
         else:  # a launch also ends at a full frame buffer (Engine: a byte budget, ≥ 1 frame)
             self.steps_per_launch = 1000

@@ -293,3 +293,46 @@ def test_a_study_whose_every_design_breaks_a_constraint_stops_with_one_line(tmp_
                           "--fix", "flat_depth_mm=19", "--trials", 2, "--batch", 1, "--references", "none")
     assert code == 2 and out == "" and err.count("\n") == 1, err
     assert "constraints = 50 designs in a row: every one broke a constraint" in err.replace("'", "")
+
+
+# ------------------------------------------------------------------ other mills, the charge, the run line
+def taimill(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "taimill", *map(str, args)], cwd=cwd, capture_output=True, text=True,
+                          timeout=300, env={**__import__("os").environ, "PYTHONPATH": str(ROOT)})
+
+
+def test_a_fixed_gear_mill_is_designed_at_its_gear_with_the_charge_options_and_a_pastable_run_line(tmp_path):
+    # a preset file of the user's own, named relative to the folder the study is run from
+    (tmp_path / "mine.toml").write_text((ROOT / "presets/p4-cy-steel.toml").read_text())
+    res = taimill("design", "mine.toml", "--out", "study", "--mill", "retsch-pm100", "--jar-volume", 80,
+                  "--jar-material", "zirconia", "--powder-mass", 10, "--objective", "specific_power_W_per_g:max",
+                  "--floor", "specific_power_W_per_g=0", "--references", "retsch-80ml", "--trials", 1, "--batch", 1,
+                  "--replicas", 1, "--duration", 0.3, "--analysis-start", 0.1, "--workers", 1, "--json", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    out = json.loads(res.stdout)
+    s = out["settings"]
+    assert s["ratio"] == [-1, -1] and "ratio" not in out["searched"]  # the PM 100's gear 1:-2, not searched
+    assert s["overrides"]["jar_volume_ml"] == 80 and s["overrides"]["jar_material"] == "zirconia"
+    assert s["overrides"]["powder.mass_g"] == 10
+    assert set(out["references"]) == {"retsch-80ml"}
+    assert math.isfinite(out["best"][0]["figures"]["specific_power_W_per_g"][0])
+    design = tmp_path / "study" / "best" / "design-1.toml"
+    jar = load_jar(str(design), "test")
+    bowl = load_jar("retsch-80ml")
+    assert jar.wall_material == "zirconia" and jar.height == bowl.height
+    assert math.isclose(next(v["radius"] for k, v in jar.primitives if k == "circle"), bowl.radius)  # the bowl's size
+    (line,) = [x for x in design.read_text().splitlines() if "Run it" in x]
+    command = line.partition("): ")[2]
+    assert command.startswith("taimill run ") and str(tmp_path) not in line and " /" not in command, line
+    assert "--mill retsch-pm100" in command and "--ratio" not in command, line  # K is the gear's
+    import shlex
+
+    pasted = taimill(*shlex.split(command)[1:], "--dry-run", cwd=tmp_path / "study")  # from the study folder
+    assert pasted.returncode == 0, pasted.stderr
+
+
+def test_a_ratio_on_a_fixed_gear_mill_is_refused_in_one_line_naming_the_gear(tmp_path):
+    res = taimill("design", "--mill", "retsch-pm100", "--ratio=-3:-2", "--out", "s", cwd=tmp_path)
+    assert res.returncode == 2 and res.stdout == "" and res.stderr.count("\n") == 1, res.stderr
+    assert "--ratio" in res.stderr and "retsch-pm100 has a fixed gear 1:-2 (K = -1)" in res.stderr, res.stderr
+    assert not (tmp_path / "s").exists()

@@ -93,19 +93,24 @@ def dt_option(text: str | None):
         return text
 
 
-def overrides(a) -> dict:
+def overrides(a, skip: tuple = ()) -> dict:
     """The preset overrides of parsed arguments (None: not given); those a command does
-    not take (the live mill's LIVE_IGNORED) are left out."""
-    dt = dt_option(a.dt)
+    not take (the live mill's LIVE_IGNORED, an option it has not, the `skip` keys whose
+    options mean something else there, as design's --ratio range and study --seed) are
+    left out."""
+    def arg(name):
+        return getattr(a, name, None)
+
+    dt = dt_option(arg("dt"))
     given = {
-        "ratio": a.ratio, "jar_rpm": a.jar_rpm, "plate_rpm": a.plate_rpm, "pair": a.pair,
-        "jar": a.jar, "mill": a.mill, "jar_volume_ml": a.jar_volume, "balls.count": a.balls, "balls.filling": a.filling,
-        "powder.mass_g": a.powder_mass, "seed": a.seed, "duration": getattr(a, "duration", None), "dt": dt,
-        "law": a.law, "analysis_start": getattr(a, "analysis_start", None),
-        "balls.material": a.ball_material, "balls.diameter_mm": a.ball_diameter, "jar_material": a.jar_material,
-        "plate_radius_mm": a.plate_radius, "softening": getattr(a, "softening", None),
+        "ratio": arg("ratio"), "jar_rpm": arg("jar_rpm"), "plate_rpm": arg("plate_rpm"), "pair": arg("pair"),
+        "jar": arg("jar"), "mill": arg("mill"), "jar_volume_ml": arg("jar_volume"), "balls.count": arg("balls"),
+        "balls.filling": arg("filling"), "powder.mass_g": arg("powder_mass"), "seed": arg("seed"),
+        "duration": arg("duration"), "dt": dt, "law": arg("law"), "analysis_start": arg("analysis_start"),
+        "balls.material": arg("ball_material"), "balls.diameter_mm": arg("ball_diameter"),
+        "jar_material": arg("jar_material"), "plate_radius_mm": arg("plate_radius"), "softening": arg("softening"),
     }
-    return {k: v for k, v in given.items() if k not in LIVE_IGNORED or hasattr(a, k)}
+    return {k: v for k, v in given.items() if k not in skip and (k not in LIVE_IGNORED or hasattr(a, k))}
 
 
 def add_overrides(p, live: bool = False):

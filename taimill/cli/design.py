@@ -29,7 +29,9 @@ def register(sub) -> None:
                         "give it twice or more for a Pareto front (NSGA-II); one objective uses TPE")
     d.add_argument("--floor", action="append", default=[], metavar="KEY=VALUE",
                    help="a design is feasible only if this figure's mean is at least VALUE, e.g. impact_power=2.5")
-    d.add_argument("--ratio", metavar="LO:HI | K", help="K searched in [LO, HI], or one K (default: the preset's)")
+    d.add_argument("--ratio", metavar="LO:HI | K",
+                   help="K searched in [LO, HI], or one K (default: the preset's); a free-gear mill only: "
+                        "a fixed-gear mill's K is its gear's")
     d.add_argument("--trials", type=integer, default=40, help="designs to evaluate (default 40)")
     d.add_argument("--batch", type=integer, default=8,
                    help="designs asked and run together as one sweep (NSGA-II: the population; default 8)")
@@ -40,7 +42,9 @@ def register(sub) -> None:
     d.add_argument("--min-wall", type=number, default=1.0, metavar="MM",
                    help="thinnest insert (flat or lifter) a maker accepts, mm (default 1)")
     d.add_argument("--fix", action="append", default=[], metavar="NAME=VALUE", help="hold a family parameter fixed, e.g. n_lifters=3")
-    d.add_argument("--references", default=THESIS_JARS, help=f"reference jars run by the same protocol (default {THESIS_JARS}; 'none')")
+    d.add_argument("--references", help=f"reference jars run by the same protocol: jar or bowl names (`taimill jars`, "
+                                        f"e.g. retsch-80ml) or jar files (default {THESIS_JARS}, or the --jar-volume "
+                                        "bowl; 'none')")
     d.add_argument("--reference-ratios", metavar="A:B:STEP | K1,K2,…",
                    help=f"K values the references run at, each taken at its best (default: every {REFERENCE_STEP} across --ratio)")
     d.add_argument("--confirm", type=number, metavar="SECONDS",
@@ -58,16 +62,31 @@ def register(sub) -> None:
     o.add_argument("--ball-material", type=name_text, help="ball material")
     o.add_argument("--ball-diameter", type=number, metavar="MM", help="ball diameter (mm)")
     o.add_argument("--mill", type=name_text, help="planetary mill (name or mill file)")
+    o.add_argument("--jar-volume", type=integer, metavar="ML",
+                   help="the mill's bowl of this volume (ml) as the reference jar: the designs keep its radius, "
+                        "height and wall material (instead of the preset's jar)")
+    o.add_argument("--jar-material", type=name_text,
+                   help="the designed and reference jars' wall material, e.g. zirconia (taimill materials)")
+    o.add_argument("--powder-mass", type=number, metavar="G",
+                   help="powder charged (g): recorded with every run, not simulated; per-gram keys "
+                        "(specific_power_W_per_g) become objectives and floors")
     o.add_argument("--dt", help="time step in s, or 'auto'")
     o.add_argument("--law", help=LAW_HELP)
     d.set_defaults(fn=cmd_design)
 
 
 def _ratio(text: str | None, preset: str, overrides: dict) -> tuple[float, float]:
-    if text is None:
-        from taimill.model.preset import load_preset
+    from taimill.model.preset import load_preset
 
-        k = load_preset(preset, overrides).drive.ratio
+    base = load_preset(preset, overrides)
+    gear = base.mill.gear if base.mill is not None else None
+    if gear is not None and gear.kind == "fixed":  # K is the gear's: nothing to search or set
+        if text is not None:
+            raise ConfigError("command line", "--ratio", text, f"{base.mill.name} has a fixed gear {gear.text} "
+                              f"({gear.k_text}); K comes from the gear and cannot be searched or set")
+        return gear.ks[0], gear.ks[0]
+    if text is None:
+        k = base.drive.ratio
         return k, k
     parts = text.split(":")
     try:
@@ -121,12 +140,10 @@ def settings_of(a):
     floors = dict(parse_floor(t) for t in a.floor)
     # absolute, links kept: the loader names a broken link or a loop in its one line
     preset = os.path.abspath(a.preset) if a.preset.endswith(".toml") else a.preset
-    from taimill.cli.common import dt_option
+    from taimill.cli.common import overrides as given
 
-    overrides = {k: v for k, v in {"duration": a.duration, "analysis_start": a.analysis_start, "plate_rpm": a.plate_rpm,
-                                   "pair": a.pair, "balls.count": a.balls, "balls.material": a.ball_material,
-                                   "balls.diameter_mm": a.ball_diameter, "mill": a.mill, "dt": dt_option(a.dt),
-                                   "law": a.law}.items() if v is not None}
+    # the run overrides as run and sweep read them; --ratio (a range here) and --seed (the study's) are the design's own
+    overrides = {k: v for k, v in given(a, skip=("ratio", "seed")).items() if v is not None}
     ratio = _ratio(a.ratio, preset, overrides)
     return Settings(preset, a.family, objectives, floors, ratio, a.replicas, a.seed, a.batch, overrides,
                     a.tolerance, a.min_wall, _fixed(a.fix))
@@ -136,12 +153,33 @@ def _reference_ratios(a, ratio) -> list[float]:
     from taimill.runs.sweep import parse_values
 
     if a.reference_ratios:
+        if a.ratio is None and ratio[0] == ratio[1] and _fixed_gear(a):
+            raise ConfigError("command line", "--reference-ratios", a.reference_ratios,
+                              f"{_fixed_gear(a)}; the references run at its K")
         return parse_values(a.reference_ratios, "--reference-ratios")
     lo, hi = ratio
     if lo == hi:
         return [lo]
     grid = parse_values(f"{hi}:{lo}:{REFERENCE_STEP}", "--ratio")
     return grid + ([] if abs(grid[-1] - lo) < 1e-9 else [lo])
+
+
+def _bowl_name(jar) -> str:
+    """The reference bowl by its name where the name finds it (retsch-80ml), else its file."""
+    from taimill.model.jars import load_jar
+
+    try:
+        same = Path(load_jar(jar.name, "command line").source).resolve() == Path(jar.source).resolve()
+    except ConfigError:
+        same = False
+    return jar.name if same else str(jar.source)
+
+
+def _fixed_gear(a) -> str:
+    """"MILL has a fixed gear …" when the study's mill has one, else ""."""
+    mill = getattr(a, "_mill", None)
+    g = mill.gear if mill is not None else None
+    return f"{mill.name} has a fixed gear {g.text} ({g.k_text})" if g is not None and g.kind == "fixed" else ""
 
 
 def _check_out(out: Path) -> None:
@@ -156,7 +194,12 @@ def cmd_design(a) -> int:
     from taimill.design.study import Study, evaluate_references
 
     s = settings_of(a)
-    refs = [] if a.references.strip().lower() == "none" else [r.strip() for r in a.references.split(",") if r.strip()]
+    from taimill.model.preset import load_preset
+
+    base = load_preset(s.preset, s.overrides)
+    a._mill = base.mill
+    text = a.references if a.references is not None else (_bowl_name(base.jar) if a.jar_volume else THESIS_JARS)
+    refs = [] if text.strip().lower() == "none" else [r.strip() for r in text.split(",") if r.strip()]
     from taimill.model.jars import load_jar
 
     for r in refs:
@@ -198,7 +241,7 @@ def confirm(study, res: dict, duration: float) -> dict:
     if not 0 <= start < duration:
         raise ConfigError("command line", "--confirm", duration, f"must exceed the preset's analysis start {start:g} s")
     protocol = Protocol(study.s.preset, study.s.overrides | {"duration": duration, "analysis_start": start},
-                        study.s.replicas, study.s.seed)
+                        study.s.replicas, study.s.seed, study.protocol.fixed_gear)
     best = res["best"][0]
     cands = {"design 1": (best["jar"], best["ratio"])} | {n: (n, r["ratio"]) for n, r in res["references"].items()}
     path = study.out / "confirmation.json"  # kept: the same command again does not run it again

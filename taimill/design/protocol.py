@@ -84,19 +84,25 @@ def mean_spread(values: list[float]) -> tuple[float, float]:
 @dataclass
 class Protocol:
     """The runs that make one jar's figures: the preset with `overrides` (duration,
-    analysis start, …), the jar and K swapped in, replicas seeds seed … seed+R−1."""
+    analysis start, …), the jar and K swapped in, replicas seeds seed … seed+R−1. On a
+    fixed-gear mill (`fixed_gear`) K is the gear's and is not passed (the loader refuses a
+    K set on such a mill). The reference bowl of a jar_volume_ml override is the study's
+    jar size only: the jar swapped in replaces it."""
 
     preset: str
     overrides: dict = field(default_factory=dict)
     replicas: int = 3
     seed: int = 1
+    fixed_gear: bool = False
 
     def presets(self, jar: str, ratio: float) -> list:
         from taimill.model.preset import load_preset
 
         jar = str(Path(jar).resolve()) if jar.endswith(".toml") else jar
-        return [load_preset(self.preset, self.overrides | {"jar": jar, "ratio": ratio, "seed": self.seed + r})
-                for r in range(self.replicas)]
+        base = {k: v for k, v in self.overrides.items() if k != "jar_volume_ml"} | {"jar": jar}
+        if not self.fixed_gear:
+            base["ratio"] = ratio
+        return [load_preset(self.preset, base | {"seed": self.seed + r}) for r in range(self.replicas)]
 
 
 def evaluate(protocol: Protocol, candidates: list[tuple[str, float]], *, workers=None, scheduler=None,

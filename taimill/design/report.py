@@ -102,11 +102,45 @@ def write_best(study, res: dict) -> list[Path]:
         figs = [f"{k} = {m:.5g} ± {s:.2g} {study_unit(k)} (mean ± sample s.d. of {len(v)} replicas)"
                 for k, (m, s, v) in r["figures"].items()]
         path = folder / f"design-{i}.toml"
-        extra = [f"Run it: taimill run {preset_text(study.s.preset)} --jar {path.name} --ratio {r['ratio']:.6g}", *figs]
+        extra = [f"Run it (from the study folder {study.out.name}): {run_line(study, path, r['ratio'])}", *figs]
         path = study.write_jar(r["trial"], {**r["params"], "ratio": r["ratio"]}, extra, path)
         r["file"] = str(path)
         paths.append(path)
     return paths
+
+
+# the study's run overrides as `taimill run` options; the duration and analysis window are
+# the design's short runs' (a run of the design keeps the preset's), the bowl of
+# jar_volume_ml is replaced by the designed jar, whose file has the wall material
+RUN_OPTIONS = {"mill": "--mill", "plate_rpm": "--plate-rpm", "pair": "--pair", "balls.count": "--balls",
+               "balls.material": "--ball-material", "balls.diameter_mm": "--ball-diameter",
+               "powder.mass_g": "--powder-mass", "dt": "--dt", "law": "--law"}
+
+
+def run_line(study, jar: Path, ratio: float) -> str:
+    """`taimill run …` of a designed jar file, every path relative to the study folder (the
+    line is pasted there: `cd STUDY` first), K only where the mill's gear is not fixed."""
+    import os
+    import shlex
+
+    def rel(path) -> str:
+        try:
+            return os.path.relpath(Path(path).resolve(), study.out.resolve())
+        except ValueError:  # another drive (Windows): no relative path
+            return str(Path(path).resolve())
+
+    preset = preset_text(study.s.preset)
+    words = ["taimill", "run", rel(preset) if preset.endswith(".toml") else preset, "--jar", rel(jar)]
+    for key, option in RUN_OPTIONS.items():
+        v = study.s.overrides.get(key)
+        if v is None:
+            continue
+        if key == "mill" and str(v).endswith(".toml"):
+            v = rel(v)
+        words += [option, f"{v:.6g}" if isinstance(v, float) else str(v)]
+    if not study.protocol.fixed_gear:
+        words.append(f"--ratio={ratio:.6g}")  # the = form: a negative K is the option's value
+    return shlex.join(words)
 
 
 def preset_text(preset: str) -> str:

@@ -63,10 +63,14 @@ class Study:
 
         optuna.logging.set_verbosity(optuna.logging.WARNING)
         self.out, self.s, self.workers, self.scheduler, self.log = Path(out), settings, workers, scheduler, log
-        self.protocol = Protocol(settings.preset, settings.overrides, settings.replicas, settings.seed)
         from taimill.model.preset import load_preset
 
-        base = self.base = load_preset(settings.preset, settings.overrides | {"ratio": settings.ratio[0]})
+        base = load_preset(settings.preset, settings.overrides)
+        fixed_gear = base.mill is not None and base.mill.gear.kind == "fixed"  # K is the gear's, never set
+        if not fixed_gear:
+            base = load_preset(settings.preset, settings.overrides | {"ratio": settings.ratio[0]})
+        self.base = base
+        self.protocol = Protocol(settings.preset, settings.overrides, settings.replicas, settings.seed, fixed_gear)
         self.limits = constraints.Limits(self._circle(base.jar), base.jar.volume, settings.tolerance,
                                          base.balls.radius, settings.min_wall_mm * 1e-3)
         self.family = families.family(settings.family)
@@ -93,7 +97,12 @@ class Study:
 
     @staticmethod
     def _circle(jar) -> float:
-        return next(v["radius"] for kind, v in jar.primitives if kind == "circle")
+        """The reference jar's curved wall (the families keep its radius); a jar without one refused."""
+        radius = next((v["radius"] for kind, v in jar.primitives if kind == "circle"), None)
+        if radius is None:
+            raise ConfigError("command line", "reference jar", jar.name, "has no circular wall [[profile]] type = "
+                              "\"circle\" whose radius the designs could keep; give a jar or bowl with one")
+        return radius
 
     # ------------------------------------------------------------ sampling
     def _sampler(self, n: int):

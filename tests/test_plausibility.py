@@ -143,7 +143,8 @@ SLIP = ("--mill", "retsch-pm100", "--jar-volume", "80", "--jar-material", "zirco
 
 def test_a_unit_slip_that_would_run_for_hours_is_refused_unless_asked_for(tmp_path):
     # it was accepted, announced 9·10⁸ steps and sat compiling for minutes
-    from taimill.cli.run import UNASKED_SECONDS, cpu_estimate, unasked_limit
+    from taimill.cli.run import UNASKED_SECONDS, unasked_limit
+    from taimill.model.cost import run_seconds
 
     out = tmp_path / "slip.zarr"
     res = subprocess.run([sys.executable, "-m", "taimill", "run", *SLIP, "--out", str(out)], cwd=ROOT,
@@ -157,7 +158,7 @@ def test_a_unit_slip_that_would_run_for_hours_is_refused_unless_asked_for(tmp_pa
     overrides = {"mill": "retsch-pm100", "jar_volume_ml": 80, "jar_material": "zirconia", "balls.material": "zirconia",
                  "balls.count": 25, "pair": "zirconia-zirconia", "plate_rpm": 400, "balls.diameter_mm": 0.01, "duration": 6}
     preset = load_preset(CY, overrides)
-    assert cpu_estimate(preset)[1] > UNASKED_SECONDS
+    assert run_seconds(preset)[1] > UNASKED_SECONDS
     unasked_limit(preset, yes=True)  # --yes: the user meant it
     with pytest.raises(ConfigError):
         unasked_limit(preset, yes=False)
@@ -165,9 +166,10 @@ def test_a_unit_slip_that_would_run_for_hours_is_refused_unless_asked_for(tmp_pa
 
 @pytest.mark.parametrize("path", PRESETS, ids=lambda p: p.stem)
 def test_every_shipped_preset_runs_without_being_asked_or_says_why(path):
-    from taimill.cli.run import UNASKED_SECONDS, cpu_estimate
+    from taimill.cli.run import UNASKED_SECONDS
+    from taimill.model.cost import run_seconds
 
     preset = load_preset(path)
-    hours = cpu_estimate(preset)[1] / 3600
+    hours = run_seconds(preset)[1] / 3600
     # the bead presets are the point of their hours (docs/performance.md): they need --yes
     assert (hours * 3600 <= UNASKED_SECONDS) or "beads" in path.stem, (path.stem, hours)

@@ -13,7 +13,8 @@ import pytest
 import zarr
 from PIL import Image
 
-from taimill.figures.report import FIGURES, SUBSTEPS, draw_energy, draw_trajectories_top, hermite_path
+from taimill.figures.report import FIGURES, draw_energy
+from taimill.figures.trajectories import SUBSTEPS, draw_trajectories_top, hermite_path
 from taimill.analysis.run import analyse
 from taimill.model.files import ROOT
 from taimill.model.preset import load_preset
@@ -250,7 +251,7 @@ def test_a_step_too_long_to_resolve_is_left_as_points_and_a_smooth_path_stays_a_
     # smooth arc the Hermite curve follows; 48° a frame (the jar's turn on the plate
     # per 10 ms frame at 400 rpm, K = -1) bows 2.1 mm off its chord, more than half the
     # ball's radius: drawn as points only, however well its end velocities fit an arc
-    from taimill.figures.report import JOIN_BOW, frame_path
+    from taimill.figures.trajectories import JOIN_BOW, frame_path
 
     r = 0.0025
     t, x, v = wall_ride([10, 10, 48, 10, 10])

@@ -148,17 +148,14 @@ def cmd_advise(a) -> int:
 
 def cost_line(req, points: list[dict], workers: int | None) -> str:
     """What is swept, how many points and about how much CPU and wall time they take
-    (docs/performance.md's CPU per step: cli.run.STEP_US, BALL_US)."""
+    (taimill.model.cost)."""
     import os
 
-    from taimill.cli.run import BALL_US, STEP_US, span_text
+    from taimill.cli.run import span_text
+    from taimill.model.cost import run_seconds
 
-    lo = hi = 0.0
-    for p in points:
-        pr = p["preset"]
-        steps = pr.duration / pr.dt
-        lo += steps * (STEP_US + BALL_US[0] * pr.balls.count) * 1e-6
-        hi += steps * (STEP_US + BALL_US[1] * pr.balls.count) * 1e-6
+    lo = sum(run_seconds(p["preset"])[1] for p in points)
+    hi = sum(run_seconds(p["preset"])[2] for p in points)
     n = max(1, min(workers or os.cpu_count() or 1, len(points)))
     mus = len(req.axes.get("friction.mu", [None]))
     swept = (f"{len(req.axes['plate_rpm'])} plate speeds × {mus} μ level{'s' if mus > 1 else ''} × {req.replicas} "

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from taimill.cli.common import (EXIT_UNSTABLE, DEFAULT_PRESET, PRESET_HELP, add_overrides, overrides, path_text, plain, stderr_console,
                                 summary_table)
+from taimill.model.cost import run_seconds
 
 
 def register(sub) -> None:
@@ -103,9 +104,6 @@ def cmd_run(a) -> int:
 
 
 LONG_SECONDS = 120.0  #: CPU seconds (the low estimate) from which `run` says how long it will take before it starts
-# CPU time per step ≈ 0.1 µs + 25 ns a flying ball, up to ≈ 130 ns a ball in a bed rolling
-# on the wall (docs/performance.md, the preset table)
-STEP_US, BALL_US = 0.1, (0.025, 0.13)
 
 
 # CPU seconds (the low estimate) above which a run needs --yes: a unit slip (a ball
@@ -113,17 +111,9 @@ STEP_US, BALL_US = 0.1, (0.025, 0.13)
 UNASKED_SECONDS = 3600.0
 
 
-def cpu_estimate(preset) -> tuple[float, float, float]:
-    """(steps, low, high CPU seconds) of a run of `preset` at docs/performance.md's cost
-    per step (STEP_US + BALL_US per ball)."""
-    steps = preset.duration / preset.dt
-    lo, hi = (steps * (STEP_US + b * preset.balls.count) * 1e-6 for b in BALL_US)
-    return steps, lo, hi
-
-
 def estimate_text(preset) -> str:
     """"2.4e+07 steps of dt = … for duration = … s; at … µs … this takes about 1 min to 5 min"."""
-    steps, lo, hi = cpu_estimate(preset)
+    steps, lo, hi = run_seconds(preset)
     return (f"{steps:.3g} steps of dt = {preset.dt:.3g} s for duration = {preset.duration:g} s; "
             f"at {lo / steps * 1e6:.2g}-{hi / steps * 1e6:.2g} µs of CPU a step for {preset.balls.count} balls "
             f"this takes about {span_text(lo)} to {span_text(hi)}")
@@ -132,7 +122,7 @@ def estimate_text(preset) -> str:
 def unasked_limit(preset, yes: bool) -> None:
     """Refuse a run estimated at more than UNASKED_SECONDS of CPU unless `yes` (--yes),
     naming the duration, the estimate and the ball size (whose unit is the usual slip)."""
-    if yes or cpu_estimate(preset)[1] <= UNASKED_SECONDS:
+    if yes or run_seconds(preset)[1] <= UNASKED_SECONDS:
         return
     from taimill.errors import ConfigError
 
@@ -145,7 +135,7 @@ def long_run_note(preset) -> str | None:
     """For a run expected to take more than a few minutes (even at the low end of
     docs/performance.md's CPU cost per step, more than LONG_SECONDS), a line that says
     how many steps and roughly how long they take; else None."""
-    return estimate_text(preset) if cpu_estimate(preset)[1] > LONG_SECONDS else None
+    return estimate_text(preset) if run_seconds(preset)[1] > LONG_SECONDS else None
 
 
 def span_text(seconds: float) -> str:

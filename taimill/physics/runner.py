@@ -26,7 +26,8 @@ from taimill.errors import SimulationUnstable
 from taimill.physics import state as S
 from taimill.physics.engine import Engine, advance_fused, begin_step, export_events, export_frames
 from taimill.physics.mill import write_mill
-from taimill.physics.ti import cache_folder, describe, init_taichi, ti
+from taimill.physics.ti import cache_folder, describe, init_taichi
+from taimill.model.cost import step_seconds
 from taimill.model.spec import MillSpec, grid_cells_for
 from taimill.model.spectra import Spectra
 from taimill.schema import DERIVED_EVENT_COLUMNS, EVENT_COLUMNS
@@ -53,14 +54,12 @@ FRAME_CAPACITY = (256, 32768)
 # CPU seconds a fused launch may take at the high end of the measured cost per step
 # (step_cost): the longest wait for an interrupt between launches.
 LAUNCH_WALL_SECONDS = 0.5
-# µs of CPU per mill-step and per ball-step at the high end measured in docs/performance.md
-STEP_US, BALL_US = 0.1, 0.13
 
 
 def step_cost(specs) -> float:
-    """CPU seconds of one step of the fused launch of `specs` at the high end of the cost
-    per step (STEP_US + BALL_US per ball, every mill)."""
-    return sum(STEP_US + BALL_US * s.n for s in specs) * 1e-6
+    """CPU seconds of one step of the fused launch of `specs`, every mill at the high end
+    of the measured cost per step (taimill.model.cost)."""
+    return sum(step_seconds(s.n)[1] for s in specs)
 _engines: dict = {}
 
 

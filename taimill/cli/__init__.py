@@ -49,8 +49,11 @@ def main(argv=None) -> int:
         a = parser().parse_args(argv)
     except SystemExit as done:  # --help, --version (0) or a one-line usage error (2)
         return done.code if isinstance(done.code, int) else EXIT_BAD_INPUT
+    from taimill.runs.signals import sigterm_interrupts
+
     try:
-        return a.fn(a)
+        with sigterm_interrupts():  # every command: SIGTERM exits 143 as Ctrl-C exits 130, in one line
+            return a.fn(a)
     except ConfigError as err:  # also StoreError (2) and StoreWriteError (5): taimill.errors
         print(f"taimill: error: {err}", file=sys.stderr)
         return getattr(err, "exit_code", EXIT_BAD_INPUT)

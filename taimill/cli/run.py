@@ -59,13 +59,15 @@ def cmd_run(a) -> int:
         sink = NullSink()
         if a.out:
             from taimill.store.layout import is_run_store, is_unstarted_store
+            from taimill.store.run import holds_a_frame
             from taimill.store.writer import ZarrSink
 
-            # a run refused before it started (balls that do not fit) leaves no store in
-            # the way of its retry: kept only once it holds its config (is_run_store); an
-            # empty one an older taimill left is replaced like a run store
+            # a run refused or stopped before its first frame (balls that do not fit, Ctrl-C
+            # while compiling) leaves no store in the way of its retry: kept only once it
+            # holds a committed frame (holds_a_frame); an empty one an older taimill left is
+            # replaced like a run store
             sink = ZarrSink(outputs.add(a.out, overwrite=a.overwrite, what="run", kind="run store",
-                                        ours=lambda p: is_run_store(p) or is_unstarted_store(p), keep=is_run_store,
+                                        ours=lambda p: is_run_store(p) or is_unstarted_store(p), keep=holds_a_frame,
                                         inputs=inputs))
         if a.rrd:
             from taimill.cli.record import is_recording

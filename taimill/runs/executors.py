@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from taimill.runs import signals
 from taimill.store.sinks import MemorySink, NullSink
 
 
@@ -163,6 +164,7 @@ def run_local(chunks: list[list[Job]], workers: int, keep_streams: bool, on_prog
         pending = set(futures)
         workers_seen: dict = {}  # every worker process ever seen: a broken pool may have dropped the dead one already
         while pending:
+            signals.check()  # a Ctrl-C that an import swallowed (runs.signals)
             workers_seen |= dict(getattr(pool, "_processes", None) or {})
             done, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
             workers_seen |= dict(getattr(pool, "_processes", None) or {})

@@ -3,7 +3,13 @@
 - `sigterm_interrupts()`: while a run or sweep works, SIGTERM takes the Ctrl-C path
   (`taimill.errors.Interrupted`, a KeyboardInterrupt): every buffered row is committed,
   the status becomes "interrupted" and the command exits with 143 (128 + SIGTERM; Ctrl-C
-  gives 130). A second SIGTERM during that clean-up kills at once.
+  gives 130). A second SIGTERM during that clean-up kills at once. The command line
+  enters it around every command, so each one stops so.
+- An interrupt is remembered until the block ends: code that swallows exceptions
+  (Taichi's kernel decorator wraps a source lookup in a bare `except:`, run at every
+  import of a module that defines kernels) would otherwise lose a Ctrl-C that lands
+  there, and a sweep interrupted 1 s in ran to its end. `check()` raises it again; the
+  run and sweep loops call it between launches and while they wait.
 - `die_with_parent(pid)`: a sweep's worker process dies with the process that started
   it, also when that one is killed with SIGKILL and can clean nothing up. On Linux the
   kernel does it (prctl PR_SET_PDEATHSIG); elsewhere a thread polls os.getppid().
@@ -29,10 +35,11 @@ POLL_SECONDS = 0.5
 # While a launch's rows are handed to the sinks the interrupt waits (hold/release): a
 # block that reached the run summary but not the store would make the store disagree
 # with its own summary (events counted but never written), which readers call damage.
-_held = {"depth": 0, "pending": None}
+_held = {"depth": 0, "pending": None, "seen": None}
 
 
 def _interrupt(err: KeyboardInterrupt) -> None:
+    _held["seen"] = err
     if _held["depth"]:
         _held["pending"] = err
         return
@@ -61,6 +68,14 @@ def release() -> None:
         raise err
 
 
+def check() -> None:
+    """Raise an interrupt that arrived in this block and was swallowed on its way out
+    (module doc); nothing while a hold lasts (release raises it then)."""
+    if _held["seen"] is not None and not _held["depth"]:
+        _held["pending"] = None
+        raise _held["seen"]
+
+
 def drop_hold() -> None:
     """End every hold without raising (the run is finishing anyway)."""
     _held["depth"], _held["pending"] = 0, None
@@ -85,6 +100,8 @@ def sigterm_interrupts():
         for signum, before in ours.items():
             signal.signal(signum, before)
         drop_hold()
+        if ours:
+            _held["seen"] = None
 
 
 def die_with_parent(parent: int) -> None:

@@ -52,10 +52,12 @@ class SpectraOnly(Relay):
 
 
 class WholeLaunches(Relay):
-    """Hands each launch to the sinks whole: a launch sends its events, then frames, then
-    ledger rows (physics.runner), and SIGTERM or Ctrl-C arriving meanwhile waits until
-    the ledger rows are in (signals.hold), so the store and the summary hold the same
-    launches."""
+    """Hands each launch to the sinks whole: a launch's drain sends its events, then
+    frames, then ledger rows (physics.runner; frames and ledger rows only when the
+    launch took a frame), and SIGTERM or Ctrl-C arriving meanwhile waits until
+    `launch_done()` after the drain (signals.hold), so the store and the summary hold
+    the same launches. (The hold once ended with the ledger rows: a 10⁵-ball run whose
+    launches took no frame held it from launch to launch, and Ctrl-C waited 18 s.)"""
 
     def __init__(self, sink):
         super().__init__(sink)
@@ -76,11 +78,17 @@ class WholeLaunches(Relay):
 
     def energy(self, block):
         self._hold()
-        try:
-            self.sink.energy(block)
-        finally:
+        self.sink.energy(block)
+
+    def spectra(self, spectra):
+        self._hold()
+        super().spectra(spectra)
+
+    def launch_done(self):
+        """The drain is over: an interrupt that waited is raised here, between launches."""
+        if self.holding:
             self.holding = False
-            signals.release()  # an interrupt that waited is raised here, between launches
+            signals.release()
 
     def finish(self, summary, status):
         if self.holding:
@@ -116,9 +124,16 @@ def run(preset, sink=None, *, duration: float | None = None, progress=None, stag
     stage("first neighbour lists, first launch…")
     t0 = time.perf_counter()
     status = "complete"
+    def after_launch(t):
+        out.launch_done()
+        signals.check()
+        if progress:
+            progress(t)
+
     with sigterm_interrupts():
         try:
-            runner.run([out], progress)
+            signals.check()  # a Ctrl-C that landed in the kernels' imports or compiling
+            runner.run([out], after_launch)
         except SimulationUnstable as err:
             status = f"unstable: {err}"
             raise

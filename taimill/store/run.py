@@ -394,3 +394,18 @@ def trim_to_valid(path_or_group) -> None:
         for arr in arrays:
             if arr.shape[0] > n:
                 arr.resize((n, *arr.shape[1:]))
+
+
+def holds_a_frame(path) -> bool:
+    """True if `path` is a run store taimill wrote with at least one committed frame:
+    what a run stopped early keeps. One stopped before its first frame (Ctrl-C while
+    compiling, a fault at the first step) holds nothing a reader can use and is removed,
+    so that its retry does not meet it; a damaged store is kept (it may be evidence)."""
+    from taimill.store.layout import is_run_store
+
+    if not is_run_store(path):
+        return False
+    try:
+        return open_run(path).rows.get("trajectory", 0) > 0
+    except StoreError:
+        return True

@@ -9,6 +9,7 @@ import importlib.util
 import io
 import json
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -25,7 +26,7 @@ from taimill.store.writer import ZarrSink
 from taimill.runs.sweep import auto_batch, chunks, parse_values, refine
 from taimill.runs.executors import Job, PointResult
 from taimill.figures.sweep import band, mark_mixed, read_overlay, report_sweep
-from taimill.analysis.sweep import REGIMES, mean_band, parabolic_peak, regime_fractions, t_quantile
+from taimill.analysis.sweep import REGIMES, mean_band, parabolic_peak, regime_fractions, seen_classes, t_quantile
 from taimill.store.sweep import SweepStore, is_sweep, open_sweep
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -258,24 +259,28 @@ def test_refine_locates_a_skewed_maximum():
 # ---------------------------------------------------------------- regimes of the replicas
 def _bistable_table():
     """A hand-made sweep table, two curves (Ω = 200, 300 rpm), one row per point x
-    replica. At Ω = 200, K = -2.4 the replicas disagree (2 cataracting, 1 pinned to
-    the wall); at 300 rpm one replica is not classified ("" is the store's fill)."""
-    rows = [(200.0, -2.4, "cataracting", 5e-3), (200.0, -2.4, "rolling", 1e-3), (200.0, -2.4, "cataracting", 6e-3),
-            (200.0, -2.6, "rolling", 1e-3), (200.0, -2.6, "rolling", 2e-3), (200.0, -2.6, "rolling", 1.5e-3),
-            (300.0, -2.4, "cataracting", 9e-3), (300.0, -2.4, "", 8e-3)]
-    rpm, k, regime, se = (np.array(c) for c in zip(*rows))
+    replica, each with its regime (the thesis' three) and class (the summary's). At
+    Ω = 200, K = -2.4 the replicas disagree (2 cataracting, 1 pinned to the wall); at
+    300 rpm one replica is not classified ("" is the store's fill)."""
+    rows = [(200.0, -2.4, "cataracting", "cataracting", 5e-3), (200.0, -2.4, "rolling", "pinned ring", 1e-3),
+            (200.0, -2.4, "cataracting", "cataracting", 6e-3), (200.0, -2.6, "rolling", "pinned ring", 1e-3),
+            (200.0, -2.6, "rolling", "pinned ring", 2e-3), (200.0, -2.6, "rolling", "pinned ring", 1.5e-3),
+            (300.0, -2.4, "cataracting", "cataracting", 9e-3), (300.0, -2.4, "", "", 8e-3)]
+    rpm, k, regime, cls, se = (np.array(c) for c in zip(*rows))
     n = len(rows)
     return {"point": np.arange(n), "jar": np.array(["CY"] * n), "balls": np.full(n, 12), "pair": np.array(["steel-steel"] * n),
-            "plate_rpm": rpm, "ratio": k, "regime": regime, "mean_se": se}
+            "plate_rpm": rpm, "ratio": k, "regime": regime, "regime_class": cls, "mean_se": se}
 
 
 def test_regime_fractions_flag_a_k_whose_replicas_disagree():
     got = regime_fractions(_bistable_table())
     assert [(g["plate_rpm"], g["ratio"], g["replicas"], g["bistable"]) for g in got] == [
         (200.0, -2.6, 3, False), (200.0, -2.4, 3, True), (300.0, -2.4, 2, False)]
-    assert got[0]["regime_fractions"] == {"cascading": 0.0, "cataracting": 0.0, "rolling": 1.0}
-    assert got[1]["regime_fractions"] == {"cascading": 0.0, "cataracting": pytest.approx(2 / 3), "rolling": pytest.approx(1 / 3)}
-    assert got[2]["regime_fractions"] == {"cascading": 0.0, "cataracting": 0.5, "rolling": 0.0, "unknown": 0.5}
+    zero = dict.fromkeys(REGIMES, 0.0)  # every class of the summary's vocabulary, those seen with their share
+    assert got[0]["regime_fractions"] == zero | {"pinned ring": 1.0}
+    assert got[1]["regime_fractions"] == zero | {"cataracting": pytest.approx(2 / 3), "pinned ring": pytest.approx(1 / 3)}
+    assert got[2]["regime_fractions"] == zero | {"cataracting": 0.5, "unknown": 0.5}
+    assert seen_classes(got) == ["cataracting", "pinned ring", "unknown"]
     assert {k: got[1][k] for k in ("jar", "balls", "pair")} == {"jar": "CY", "balls": 12, "pair": "steel-steel"}
 
 
@@ -287,12 +292,30 @@ def test_sweep_figure_rings_a_mixed_mean_and_draws_its_replicas():
 
     table = _bistable_table()
     fig, ax = plt.subplots()
-    assert mark_mixed(ax, table, np.arange(6), "mean_se", 1e3, "C0") == {"cataracting", "rolling"}
+    assert mark_mixed(ax, table, np.arange(6), "mean_se", 1e3, "C0") == {"cataracting", "pinned ring"}
     drawn = {(float(x), round(float(y), 9), line.get_marker())
              for line in ax.get_lines() for x, y in zip(line.get_xdata(), line.get_ydata())}
-    assert drawn == {(-2.4, 4.0, "o"), (-2.4, 5.0, "^"), (-2.4, 6.0, "^"), (-2.4, 1.0, "v")}  # only K = -2.4, in mJ
+    assert drawn == {(-2.4, 4.0, "o"), (-2.4, 5.0, "^"), (-2.4, 6.0, "^"), (-2.4, 1.0, "o")}  # only K = -2.4, in mJ
     assert mark_mixed(ax, table, np.arange(6, 8), "mean_se", 1e3, "C1") == set()  # "unknown" is no disagreement
     plt.close(fig)
+
+
+def test_the_regime_figure_speaks_the_summarys_classes():
+    """regimes.png once drew the thesis' three regimes beside a table and summary that
+    give the regime classes: one panel per class a replica ends in, nothing else."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from taimill.figures.sweep import _regime_figure
+
+    n = len(_bistable_table()["point"])
+    geometry = {"plate_radius": np.full(n, 0.05), "jar_radius": np.full(n, 0.0325), "ball_radius": np.full(n, 0.006)}
+    fig = _regime_figure(_bistable_table() | geometry)
+    titles = [ax.get_title() for ax in fig.axes if ax.get_title()]
+    plt.close(fig)
+    assert titles == ["cataracting", "pinned ring", "unknown"]
 
 
 def test_sweep_json_and_table_give_the_regimes_of_the_replicas(local_sweep):
@@ -300,7 +323,7 @@ def test_sweep_json_and_table_give_the_regimes_of_the_replicas(local_sweep):
     # are the counts of the replicas' own regimes; the printed table lists each K once.
     path, rows = local_sweep
     for r in rows:
-        same = [s["regime"] for s in rows if s["ratio"] == r["ratio"]]  # one curve
+        same = [s["regime_class"] for s in rows if s["ratio"] == r["ratio"]]  # one curve: the summary's classes
         assert len(same) == 2 and set(REGIMES) <= set(r["regime_fractions"])
         assert r["regime_fractions"] == {lab: same.count(lab) / 2 for lab in r["regime_fractions"]}
         assert r["bistable"] == (len(set(same) - {"unknown"}) > 1)
@@ -309,14 +332,16 @@ def test_sweep_json_and_table_give_the_regimes_of_the_replicas(local_sweep):
     res = taimill(*SWEEP, "--out", path)  # resumes a finished sweep: nothing runs
     assert res.returncode == 0, res.stderr
     header, *lines = res.stdout.split("regimes of the replicas")[1].splitlines()[1:]
-    labels = header.split()[2:-1]  # K replicas <regimes…> bistable: only K varies
+    labels = seen_classes(rows)  # K replicas <classes some replica ends in…> bistable: only K varies
+    assert re.fullmatch(r"\s*K\s+replicas\s+" + r"\s+".join(map(re.escape, labels)) + r"\s+bistable", header), header
     printed = {float(f[0]): (int(f[1]), dict(zip(labels, map(float, f[2:-1]))), f[-1])
                for f in map(str.split, lines) if len(f) == len(labels) + 3}
     assert sorted(printed) == sorted({r["ratio"] for r in rows})
     for r in rows:
         n, shares, bistable = printed[r["ratio"]]
         assert n == 2 and bistable == ("yes" if r["bistable"] else "no")
-        assert shares == {lab: pytest.approx(f, abs=0.005) for lab, f in r["regime_fractions"].items()}
+        assert shares == {lab: pytest.approx(f, abs=0.005) for lab, f in r["regime_fractions"].items() if lab in labels}
+        assert not any(f for lab, f in r["regime_fractions"].items() if lab not in labels)
 
 
 def test_reproduce_thesis_replicates_the_collapse_and_reports_regimes(local_sweep):

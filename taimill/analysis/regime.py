@@ -308,3 +308,19 @@ def map_regime(regime: str, slip: float, wall_lag: float = math.nan, flight_frac
     if wall_lag < PINNED_LAG:
         return "pinned ring"
     return "sliding bed" if slip >= SLIDING_SLIP else "rolling bed"
+
+
+def row_class(row: dict) -> str:
+    """A run's or sweep row's regime class (MAP_REGIMES), the one vocabulary of tables
+    and figures: its stored `regime_class`, else (rows of stores written before it)
+    from its regime, slip ratio and wall lag; "unknown" where neither is there."""
+    if row.get("regime_class"):
+        return str(row["regime_class"])
+    regime = str(row.get("regime") or "unknown")
+    try:  # the slip ratio splits only a charge riding the wall
+        slip = slip_ratio(row) if regime == "rolling" else math.nan
+        return map_regime(regime, slip, row.get("wall_lag", math.nan), row.get("flight_fraction", math.nan),
+                          row.get("impact_chord", math.nan))
+    except (KeyError, TypeError, ValueError):
+        return "unknown"
+

@@ -11,10 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from taimill.schema import REGIME_CLASSES
+
 CONFIDENCE = 0.95
 # table columns telling curves apart (tables of sweeps from before mills have no "mill": read as "")
 CURVE_COLUMNS = ("mill", "jar", "balls", "pair", "plate_rpm")
-REGIMES = ("cascading", "cataracting", "rolling")  # taimill.analysis.regime's labels
+REGIMES = REGIME_CLASSES  # the regime classes of summaries, tables and figures (analysis.regime.row_class)
 
 # The columns of a sweep table that describe a point (taimill.runs.sweep.point_values, and
 # any other the sweep stores with the point) and can be its axes: column -> (symbol, unit,
@@ -212,18 +214,22 @@ def group_mean(ks, values) -> tuple[np.ndarray, np.ndarray]:
 
 
 def regime_fractions(table, columns=(*CURVE_COLUMNS, "ratio")) -> list[dict]:
-    """Share of the replicas in each motion regime, per point of a sweep table (a
-    mapping of columns as in the sweep store, one row per point × replica; uses
-    `columns` and `regime`). A point is a combination of `columns`' values, the last
-    being the x axis (default: CURVE_COLUMNS, K). One entry per curve (the other
+    """Share of the replicas in each regime class, per point of a sweep table (a mapping
+    of columns as in the sweep store, one row per point × replica; uses `columns` and the
+    class of each row, taimill.analysis.regime.row_class: its `regime_class`, else from
+    `regime` and the wall criteria). A point is a combination of `columns`' values, the
+    last being the x axis (default: CURVE_COLUMNS, K). One entry per curve (the other
     columns, in order of first appearance) and x value (ascending; numbers rounded to 10
-    decimals): {the columns' values, replicas (count), regime_fractions ({label: share
-    in [0, 1]}, always the three REGIMES, plus any other label seen, e.g. "unknown"),
-    bistable}. `bistable` is true when the replicas end in more than one regime
-    ("unknown" aside): their mean then mixes distinct states of the mill."""
+    decimals): {the columns' values, replicas (count), regime_fractions ({class: share in
+    [0, 1]}, always every class of REGIMES, plus "unknown" where seen), bistable}.
+    `bistable` is true when the replicas end in more than one class ("unknown" aside):
+    their mean then mixes distinct states of the mill."""
+    from taimill.analysis.regime import row_class
+
     *curve_cols, x = columns
     xs = np.asarray(codes(table[x]), dtype=object)
-    labels = [str(v) or "unknown" for v in table["regime"]]
+    names = list(table)
+    labels = [row_class({c: py_value(table[c][i]) for c in names}) for i in range(len(xs))]
     # a table from before mills has no mill column: one mill
     curves = list(zip(*(np.asarray(table[c]).tolist() if c in table else [""] * len(xs) for c in curve_cols))) or [()] * len(xs)
     out = []
@@ -236,6 +242,18 @@ def regime_fractions(table, columns=(*CURVE_COLUMNS, "ratio")) -> list[dict]:
                 x: k, "replicas": len(seen), "regime_fractions": shares,
                 "bistable": len(set(seen) - {"unknown"}) > 1})
     return out
+
+
+def seen_classes(groups: list[dict]) -> list[str]:
+    """The classes some replica of `groups` (regime_fractions) ends in, in REGIMES'
+    order, "unknown" last: what a table or figure of them shows."""
+    seen = {lab for g in groups for lab, share in g["regime_fractions"].items() if share > 0}
+    return [lab for lab in (*REGIMES, "unknown") if lab in seen] + sorted(seen - set(REGIMES) - {"unknown"})
+
+
+def py_value(v):
+    """A NumPy scalar of a table column as a Python value (str, float, int)."""
+    return v.item() if hasattr(v, "item") else v
 
 
 def _best(uk, means) -> int | None:

@@ -223,6 +223,7 @@ def with_regimes(rows: list[dict], axes=None) -> tuple[list[dict], list[dict]]:
     cols = axes.columns
     table = columns_of(rows)
     table["regime"] = [r.get("regime", "") for r in rows]
+    table["regime_class"] = [r.get("regime_class", "") for r in rows]
     xs = codes(table[axes.x])
 
     def key(i, r):  # x as regime_fractions codes it (numbers rounded), the curve as it is
@@ -317,8 +318,11 @@ def friction_led_line(rows: list[dict]) -> str:
 
 
 def regime_table(groups: list[dict], axes=None) -> str:
-    """One line per curve and x value: replicas, share in each regime, bistable yes/no."""
-    labels = list(dict.fromkeys(lab for g in groups for lab in g["regime_fractions"]))
+    """One line per curve and x value: replicas, share in each regime class some replica
+    ends in (the summary's and the table's `class`), bistable yes/no."""
+    from taimill.analysis.sweep import seen_classes
+
+    labels = seen_classes(groups)
     head = point_columns(axes or sweep_axes_of(groups))[1:]
     cols = (*head, ("replicas", "replicas", 1, "d"), *((lab, lab, 1, ".2f") for lab in labels),
             ("bistable", "bistable", None, "s"))

@@ -34,10 +34,11 @@ from pathlib import Path
 
 import numpy as np
 
+from taimill.analysis.regime import row_class
+from taimill.analysis.sweep import (SweepAxes, axis_label, axis_scale, curves, first_value, mean_band, py_value,
+                                    regime_fractions, seen_classes, sweep_axes, value_text, x_values)
 from taimill.errors import ConfigError
 from taimill.model.files import csv_cells, read_text
-from taimill.analysis.sweep import (REGIMES, SweepAxes, axis_label, axis_scale, curves, first_value, mean_band,
-                                    regime_fractions, sweep_axes, value_text, x_values)
 from taimill.figures.layout import legend_outside
 from taimill.figures.sweep_map import MAPS, map_figure, mark_critical
 from taimill.store.output import whole_file
@@ -60,7 +61,8 @@ FIGURES = (
      [("shear_power_persistent_wall_W_per_m2", "persistent friction on the wall")], "power per wall area (W/m²)", 1.0),
 )
 K_LABEL = "K = ω/Ω + 1 (jar spin / plate spin; |K| grows to the right)"
-REGIME_MARKERS = {"cascading": "s", "cataracting": "^", "rolling": "v"}  # any other label: "x"
+REGIME_MARKERS = {"cascading": "s", "cataracting": "^", "hopping bed": "v", "pinned ring": "o", "sliding bed": ">",
+                  "rolling bed": "D"}  # the regime classes (sweep_map.CLASS_MARKERS); any other label: "x"
 MIXED_LABEL = "mean over replicas in different regimes"
 LEGEND_WIDTH = 2.5  # inches added to a figure for the legends outside its panels
 
@@ -227,7 +229,7 @@ def regime_groups(table: dict, rows: np.ndarray, axes: SweepAxes | None = None) 
     """taimill.analysis.sweep.regime_fractions of the table's `rows` (one curve) along
     axes.x (K by default), each with its x coordinate as `x` (x_values)."""
     x = axes.x if axes else "ratio"
-    sub = {"x": x_values(table, rows, x), "regime": np.asarray(table["regime"])[rows]}
+    sub = {c: np.asarray(table[c])[rows] for c in table} | {"x": x_values(table, rows, x)}
     return [g | {x: g["x"]} if x != "x" else g for g in regime_fractions(sub, ("x",))]
 
 
@@ -238,7 +240,8 @@ def mark_mixed(ax, table, rows, column, scale, color, axes: SweepAxes | None = N
     x = axes.x if axes else "ratio"
     k = x_values(table, rows, x)
     y = table[column][rows].astype(float) * scale if column in table else np.full(len(rows), np.nan)
-    labels = np.array([str(v) or "unknown" for v in table["regime"][rows]])
+    names = list(table)
+    labels = np.array([row_class({c: py_value(table[c][r]) for c in names}) for r in rows])
     ks, mean, _ = band(table, rows, column, x)
     shown = (lambda v: v) if axes is None else (lambda v: _shown(table, axes, v))
     drawn = set()
@@ -263,18 +266,20 @@ def _mixed_legend(ax, drawn: set[str]):
 
 
 def _regime_figure(table, axes: SweepAxes | None = None):
-    """Share of the replicas in each regime against axes.x: one panel per regime, one
-    line per curve, ringed where the replicas at a value disagree."""
+    """Share of the replicas in each regime class against axes.x: one panel per class
+    some replica ends in (the classes of the summary and the sweep table), one line per
+    curve, ringed where the replicas at a value disagree."""
     import matplotlib.pyplot as plt
 
     axes = axes or sweep_axes(table)
-    fig, plots = plt.subplots(1, len(REGIMES), figsize=(5.2 * len(REGIMES) + LEGEND_WIDTH, 4.2), squeeze=False,
-                              sharey=True)
     per_curve = {label: regime_groups(table, rows, axes) for label, rows in curves(table, axes).items()}
+    shown = seen_classes([g for groups in per_curve.values() for g in groups]) or ["unknown"]
+    fig, plots = plt.subplots(1, len(shown), figsize=(4.4 * len(shown) + LEGEND_WIDTH, 4.2), squeeze=False,
+                              sharey=True)
     any_mixed = any(g["bistable"] for groups in per_curve.values() for g in groups)
-    for ax, regime in zip(plots[0], REGIMES):
+    for ax, regime in zip(plots[0], shown):
         for n, (label, groups) in enumerate(per_curve.items()):
-            share = np.array([g["regime_fractions"][regime] for g in groups])
+            share = np.array([g["regime_fractions"].get(regime, 0.0) for g in groups])
             ks = _shown(table, axes, np.array([g["x"] for g in groups]))
             mixed = np.array([g["bistable"] for g in groups])
             ax.plot(ks, share, "o-", ms=3.5, color=f"C{n % 10}", label=label)
@@ -289,7 +294,7 @@ def _regime_figure(table, axes: SweepAxes | None = None):
         ax.grid(alpha=0.3)
     legend_outside(plots[0][-1], handles=plots[0][0].get_legend_handles_labels()[0], fontsize=8)
     plots[0][0].set_ylabel("share of the replicas")
-    fig.suptitle(f"Motion regime of the replicas at each {axis_label(axes.x).split(' (')[0]} (taimill.analysis.regime)",
+    fig.suptitle(f"Regime class of the replicas at each {axis_label(axes.x).split(' (')[0]} (taimill.analysis.regime)",
                  fontsize=11)
     fig.tight_layout()
     return fig

@@ -10,9 +10,9 @@ import math
 
 import numpy as np
 
-from taimill.analysis.regime import MAP_REGIMES, map_regime, slip_ratio
-from taimill.analysis.sweep import (SweepAxes, axis_label, axis_scale, curves, first_value, mean_band, sweep_axes,
-                                    value_text, x_values)
+from taimill.analysis.regime import MAP_REGIMES, row_class
+from taimill.analysis.sweep import (SweepAxes, axis_label, axis_scale, curves, first_value, mean_band, py_value,
+                                    sweep_axes, value_text, x_values)
 from taimill.analysis.theory import critical_ratio
 from taimill.figures.layout import legend_outside
 
@@ -23,16 +23,7 @@ CLASS_MARKERS = {"cascading": "s", "cataracting": "^", "hopping bed": "v", "pinn
                  "rolling bed": "D"}  # else "x"
 
 
-def regime_class(row: dict) -> str:
-    """A sweep row's regime class (MAP_REGIMES): its stored `regime_class`, else (rows of
-    stores written before it) from its regime, slip ratio and wall lag."""
-    if row.get("regime_class"):
-        return str(row["regime_class"])
-    try:
-        return map_regime(str(row.get("regime", "")), slip_ratio(row), row.get("wall_lag", math.nan),
-                          row.get("flight_fraction", math.nan), row.get("impact_chord", math.nan))
-    except (KeyError, TypeError, ValueError):
-        return "unknown"
+regime_class = row_class  # a sweep row's class (taimill.analysis.regime.row_class)
 
 
 def map_figure(table: dict, column: str, label: str, scale: float = 1.0, axes: SweepAxes | None = None):
@@ -60,7 +51,7 @@ def map_figure(table: dict, column: str, label: str, scale: float = 1.0, axes: S
                 at = rows[(xs == xv) & (ys == yv)]
                 if len(at):
                     grid[i, j] = mean_band(values[at])[0]
-                    classes = [regime_class({c: _item(table[c][r]) for c in names}) for r in at]
+                    classes = [regime_class({c: py_value(table[c][r]) for c in names}) for r in at]
                     marks.append((xv, yv, max(sorted(set(classes)), key=classes.count)))
         cells[panel] = ux, uy, grid, marks
     finite = np.concatenate([g[np.isfinite(g)] for _, _, g, _ in cells.values()])
@@ -91,10 +82,6 @@ def map_figure(table: dict, column: str, label: str, scale: float = 1.0, axes: S
     return fig
 
 
-def _item(v):
-    return v.item() if hasattr(v, "item") else v
-
-
 def _edges(v: np.ndarray) -> np.ndarray:
     """Cell edges halfway between grid values."""
     if len(v) == 1:
@@ -118,7 +105,7 @@ def mark_critical(ax, table, axes: SweepAxes | None = None):
     for n, kc in enumerate(lines):
         parts = []
         for c in axes.curves if len(lines) > 1 else ():
-            column = [_item(v) for v in table[c]]
+            column = [py_value(v) for v in table[c]]
             mine = list(dict.fromkeys(v for v, k in zip(column, kcs) if k == kc))
             if len(mine) < len(set(column)):
                 parts += [value_text(c, v) for v in mine]

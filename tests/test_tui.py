@@ -84,6 +84,23 @@ async def test_speed_fields_ramp_the_running_mill(mill, tmp_path):
         assert mill.jar_rpm == pytest.approx(-600) and value(app, "ratio") == "-2"
 
 
+async def test_a_click_into_a_field_selects_it_so_the_first_edit_counts(mill, tmp_path):
+    """A click put the cursor where it landed, so "300" typed into a field showing 200
+    became "300200" and was refused: the user's first edit was lost. The click that
+    gives a field focus selects its text, as Tab does; a second click places the cursor."""
+    app = MillApp(mill, out_dir=tmp_path, paused=True)
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.click("#plate-rpm")
+        await pilot.press(*"300", "enter")
+        await pilot.pause()
+        assert mill.plate_rpm == pytest.approx(300) and value(app, "plate-rpm") == "300", (message(app), value(app, "plate-rpm"), app.focused)
+        await pilot.click("#ratio")
+        await pilot.click("#ratio", offset=(0, 0))  # in the field now: the cursor goes to its start
+        await pilot.press("-", "enter")
+        await pilot.pause()
+        assert "refused" in message(app) and mill.ratio == pytest.approx(-2.6)  # "--2.6": not a number
+
+
 async def test_friction_fields_and_pair(mill, tmp_path):
     app = MillApp(mill, out_dir=tmp_path, paused=True)
     async with app.run_test(size=SIZE) as pilot:

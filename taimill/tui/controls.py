@@ -27,6 +27,7 @@ from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical
 from textual.validation import Integer, Number
 from textual.widgets import Input, Label, Select, Static
+from textual.widgets.input import Selection
 
 from taimill.model.materials import pairs_sharing
 from taimill.model.jars import jar_names
@@ -66,6 +67,25 @@ def held_text(hold: str) -> str:
     """The line naming the speed kept when Ω changes."""
     return f"held: {HELD[hold]} (kept when Ω changes)"
 
+
+
+class Field(Input):
+    """A number field whose text is selected when a click gives it focus, as when Tab
+    does: Input puts the cursor where the click lands, so the number typed next joined
+    the one shown (200 → "300200", refused) and the first edit of a session was lost."""
+
+    _focus_click = False  # focus just came; a mouse press now is the click that gave it
+
+    def _on_focus(self, event):
+        self._focus_click = True
+
+    def _on_key(self, event):
+        self._focus_click = False
+
+    def _on_mouse_up(self, event):
+        if self._focus_click and self.select_on_focus:
+            self.selection = Selection(0, len(self.value))
+        self._focus_click = False
 
 class Controls(Vertical):
     DEFAULT_CSS = """
@@ -111,7 +131,7 @@ class Controls(Vertical):
             with Horizontal(classes="row"):
                 yield from self._gutter(fid)
                 yield Label(label, id=f"label-{fid}")
-                yield Input(shown(key, values[key]), id=fid, validators=[check], select_on_focus=True, compact=True)
+                yield Field(shown(key, values[key]), id=fid, validators=[check], select_on_focus=True, compact=True)
             if fid == "jar-rpm":
                 yield Static(held_text(self.hold), id="held", markup=False)
         with Horizontal(classes="row"):

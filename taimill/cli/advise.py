@@ -123,7 +123,7 @@ def cmd_advise(a) -> int:
         if a.json:  # the table's header says it otherwise
             print(f"taimill: {mu_line}", file=sys.stderr)
         print(f"taimill: {cost_line(req, points, a.workers)}", file=sys.stderr)
-        rows, _ = sweeping(req, store, bar=not a.json or sys.stderr.isatty(), workers=a.workers)
+        rows, _ = sweeping(req, store, bar=sys.stderr.isatty(), workers=a.workers)
     table = with_best(speed_rows(rows, measure, power))
     advice = recommendation(table, measure)
     if a.figure:

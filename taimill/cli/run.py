@@ -30,7 +30,7 @@ def cmd_run(a) -> int:
     from taimill.model.preset import load_preset
     from taimill.cli.common import print_warnings
 
-    show_bar = not a.json or sys.stderr.isatty()
+    show_bar = sys.stderr.isatty()  # a bar on a pipe or log file draws nothing but leaves a blank line
     with reads() as inputs:  # the preset and every file it names: no output may replace them
         if sys.stderr.isatty():  # reading and checking 10⁵-10⁶ start positions takes seconds (on a
             # terminal only: elsewhere the bar's end leaves a blank line before a one-line error)

@@ -128,7 +128,7 @@ def cmd_sweep(a) -> int:
         points = plan(req)  # every point validated before a store is touched or a kernel runs
     with sweep_outputs(a, req, points, inputs, a.map, "--map") as store:
         print_warnings(*(p["preset"] for p in points))  # every distinct one once, after every refusal, before anything runs
-        rows, peaks = sweeping(req, store, bar=not a.json or sys.stderr.isatty(), **run_kw)
+        rows, peaks = sweeping(req, store, bar=sys.stderr.isatty(), **run_kw)
     axes = sweep_axes_of(rows, points)
     rows, groups = with_regimes(rows, axes)
     if a.map:

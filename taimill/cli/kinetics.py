@@ -103,12 +103,17 @@ def _check_outputs(outputs: list[tuple], overwrite: bool, inputs) -> list[tuple]
 
 
 def _writing(outs, given: list[tuple], overwrite: bool, inputs) -> dict:
-    """option -> the path to write each output under (beside its place until `_commit`)."""
-    from taimill.store.output import Output
+    """option -> the path to write each output under (beside its place until `_commit`);
+    an interrupt waits until every output is held, so that none leaves its lock behind."""
+    from taimill.runs.signals import hold, release
 
-    return {option: outs.add(path, ours=ours, overwrite=overwrite, option=option, what=kind, inputs=inputs,
-                             whole=True, keep=lambda _: False)
-            for option, path, kind, ours, _ in given}
+    hold()
+    try:
+        return {option: outs.add(path, ours=ours, overwrite=overwrite, option=option, what=kind, inputs=inputs,
+                                 whole=True, keep=lambda _: False)
+                for option, path, kind, ours, _ in given}
+    finally:
+        release()
 
 
 def _commit(outs) -> None:

@@ -31,7 +31,7 @@ def command(*args) -> list[str]:
 
 
 def taimill(*args, cwd) -> subprocess.CompletedProcess:
-    return subprocess.run(command(*args), cwd=cwd, capture_output=True, text=True, timeout=300,
+    return subprocess.run(command(*args), cwd=cwd, capture_output=True, text=True, timeout=300, check=False,
                           env={**os.environ, "PYTHONPATH": str(ROOT)})
 
 
@@ -138,10 +138,10 @@ def _edit(text: str, key: str, value: str) -> str:
     if table:
         head, sep, rest = text.partition(f"[{table}]\n")
         body, nxt, tail = rest.partition("\n[")
-        body, n = re.subn(pattern, lambda m: f"{m.group(1)} = {value}", body, count=1, flags=re.M)
+        body, n = re.subn(pattern, lambda m: f"{m.group(1)} = {value}", body, count=1, flags=re.MULTILINE)
         assert n == 1, key
         return head + sep + body + nxt + tail
-    text, n = re.subn(pattern, lambda m: f"{m.group(1)} = {value}", text, count=1, flags=re.M)
+    text, n = re.subn(pattern, lambda m: f"{m.group(1)} = {value}", text, count=1, flags=re.MULTILINE)
     assert n == 1, key
     return text
 
@@ -210,7 +210,8 @@ def read_only(tmp_path):
     """A read-only folder: a read-only tmpfs (root ignores chmod)."""
     mnt = tmp_path / "ro"
     mnt.mkdir()
-    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=1m", "tmpfs", str(mnt)], capture_output=True, text=True)
+    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=1m", "tmpfs", str(mnt)], capture_output=True, text=True,
+                         check=False)
     if res.returncode != 0:
         pytest.skip(f"cannot mount a read-only tmpfs here ({res.stderr.strip() or res.returncode})")
     try:
@@ -239,7 +240,8 @@ def full_disk(tmp_path):
     """A 2 MB tmpfs filled but for about 12 kB: room for a fit file, not for a figure."""
     mnt = tmp_path / "disk"
     mnt.mkdir()
-    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mnt)], capture_output=True, text=True)
+    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mnt)], capture_output=True, text=True,
+                         check=False)
     if res.returncode != 0:
         pytest.skip(f"cannot mount a small tmpfs here ({res.stderr.strip() or res.returncode})")
     try:
@@ -275,13 +277,13 @@ def test_an_interrupted_fit_keeps_the_old_fit_and_leaves_nothing_that_blocks_the
         time.sleep(0.002)
     assert lock.exists(), "the fit never held its output"
     proc.send_signal(sig)
-    out, err = proc.communicate(timeout=120)
+    _, err = proc.communicate(timeout=120)
     line = one_line(err)
     assert proc.returncode == code, err
     assert line.startswith(f"taimill: {words}") and "fit.toml is unchanged" in line, line
     assert {n: (work / n).read_bytes() for n in old} == old
     assert sorted(p.name for p in work.iterdir()) == sorted(["points.csv", "condition-a.json", "condition-b.json",
                                                              "condition-c.json", "fit.toml", "fit.png"])
-    res = subprocess.run(argv, cwd=work, capture_output=True, text=True, timeout=300,
+    res = subprocess.run(argv, cwd=work, capture_output=True, text=True, timeout=300, check=False,
                          env={**os.environ, "PYTHONPATH": str(ROOT)})
     assert res.returncode == 0, res.stderr

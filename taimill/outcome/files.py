@@ -163,8 +163,9 @@ def read_fit(path, source: str = "command line", key: str = "FIT") -> Fit:
         raise ConfigError(path, "model", doc.get("model"), f"allowed: {', '.join(MODELS)} (a file of taimill kinetics fit)")
     model = MODELS[doc["model"]]
     names = {p.name for p in model.params}
-    given = {**_table(doc, path, "parameters"), **_table(doc, path, "fixed")}
-    if set(given) != names or not all(_is_number(v) for v in given.values()):
+    fitted, held = _table(doc, path, "parameters"), _table(doc, path, "fixed")
+    given = {**fitted, **held}
+    if set(given) != names or set(fitted) & set(held) or not all(_is_number(v) for v in given.values()):
         raise ConfigError(path, "parameters", given, f"need a number for each of {', '.join(sorted(names))}")
     for k in ("model", "measure", "sigma", "covariance_names", "covariance"):
         if k not in doc:

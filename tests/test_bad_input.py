@@ -17,6 +17,7 @@ file keeps its bytes and modification time and no file appears.
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import warnings
@@ -147,6 +148,8 @@ RECORD = ["record", "{in}/empty.zarr", "--rrd", "{work}/new.rrd"]
 DROP = ["calibrate", "drop", "--pair", "steel-steel", "--h0", "100", "--figure", "{work}/new.png"]
 FIT = ["calibrate", "fit", "--pair", "zirconia-zirconia", "--data", TABLE_2_1, "--out", "{work}/new.toml"]
 SENS = ["calibrate", "sensitivity", "--pair", "steel-steel", "--figure", "{work}/new.png"]
+KIN_FIT = ["kinetics", "fit", "{in}/kin/points.csv", "--out", "{work}/new.toml"]
+KIN_PREDICT = ["kinetics", "predict", "{in}/kin/fit.toml", "{in}/kin/condition-c.json"]
 OBLIQUE = ["calibrate", "oblique", "--pair", "steel-steel", "--figure", "{work}/new.png"]
 # (command, option, float or int) for argparse-typed numbers
 TYPED_NUMBERS = [
@@ -443,6 +446,26 @@ VALUES = [
     ("jars show default out existing", ["jars", "show", "HM"], ["--out", "jar-HM.png", "--overwrite"]),
     ("jars show --out a folder", ["jars", "show", "CY", "--out", "{work}/adir.png", "--overwrite"], ["--out", "folder"]),
     ("jars unknown subcommand", ["jars", "draw", "CY"], ["invalid choice", "draw"]),
+    # kinetics: outputs checked before the fit, values and fit files in their ranges
+    ("kinetics fit --out existing", KIN_FIT[:3] + ["--out", "{work}/existing.toml"], ["--out", "--overwrite"]),
+    ("kinetics fit --figure .json", KIN_FIT + ["--figure", "{work}/x.json"], ["--figure", ".png or .svg"]),
+    ("kinetics fit --figure missing folder", KIN_FIT + ["--figure", "{work}/nope/x.png"], ["--figure", "does not exist"]),
+    ("kinetics fit --figure unwritable", KIN_FIT + ["--figure", "{RO}/x.png"], ["--figure", "not writable"]),
+    ("kinetics fit --stress-figure existing", KIN_FIT + ["--stress-figure", "{work}/existing.png"],
+     ["--stress-figure", "--overwrite"]),
+    ("kinetics fit --figure same as --stress-figure", KIN_FIT + ["--figure", "{work}/k.png", "--stress-figure", "{work}/k.png"],
+     ["--stress-figure", "is also --figure"]),
+    ("kinetics fit --fix kappa_g negative", KIN_FIT + ["--fix", "kappa_g=-1"], ["--fix", "kappa_g", "(0, ∞)"]),
+    ("kinetics fit percent value", ["kinetics", "fit", "{in}/kin/percent.csv", "--out", "{work}/new.toml"],
+     ["percent.csv:3", "column 3 (value)", "95", "[0, 1] (a fraction; percent? divide by 100)"]),
+    ("kinetics predict --points percent value", KIN_PREDICT + ["--points", "{in}/kin/percent.csv"],
+     ["percent.csv:3", "column 3 (value)", "percent?"]),
+    ("kinetics predict FIT negative variance", ["kinetics", "predict", "{in}/kin/negvar.toml", "{in}/kin/condition-c.json"],
+     ["negvar.toml", "covariance[0][0]", "[0, ∞)"]),
+    ("kinetics predict FIT nan parameter", ["kinetics", "predict", "{in}/kin/nan.toml", "{in}/kin/condition-c.json"],
+     ["nan.toml", "parameters.kappa_g", "nan"]),
+    ("kinetics predict --figure .json", KIN_PREDICT + ["--figure", "{work}/x.json"], ["--figure", ".png or .svg"]),
+    ("kinetics predict --figure existing", KIN_PREDICT + ["--figure", "{work}/existing.png"], ["--figure", "--overwrite"]),
     ("presets with an argument", ["presets", "extra"], ["unrecognized", "extra"]),
     ("no command", [], ["required", "command"]),
     ("unknown command", ["simulate"], ["invalid choice", "simulate"]),
@@ -677,6 +700,12 @@ OVERWRITES = {
                                        ["--out", "is an input"]),
     "export liggghts --out the preset's folder": (["export", "liggghts", MINE, "--out", "{in}/presets", "--overwrite"],
                                                   ["--out", "holds", "mine.toml"]),
+    "kinetics fit --out the points": (KIN_FIT[:3] + ["--out", "{in}/kin/points.csv", "--overwrite"],
+                                      ["--out", "points.csv", "is an input"]),
+    "kinetics fit --out a user's file": (KIN_FIT[:3] + ["--out", "{work}/existing.toml", "--overwrite"],
+                                         ["--out", "not a fit file written by taimill", "not replaced"]),
+    "kinetics predict --figure a user's picture": (KIN_PREDICT + ["--figure", "{work}/existing.png", "--overwrite"],
+                                                   ["--figure", "not a figure", "not replaced"]),
 }
 
 
@@ -747,6 +776,16 @@ def base(tmp_path_factory):
     (bad / "syntax.toml").write_text("seed = = 1\n")
     (bad / "deep.toml").write_text("a = " + "[" * 3000 + "]" * 3000 + "\n")
     (inp / "overlay.csv").write_text(GOOD_OVERLAY)
+    # kinetics: the shipped synthetic example, a fit of it, damaged copies and percent values
+    (inp / "kin").mkdir()
+    example = ROOT / "examples" / "outcome"
+    for name in ("points.csv", "fit.toml", "condition-a.json", "condition-b.json", "condition-c.json"):
+        (inp / "kin" / name).write_bytes((example / name).read_bytes())
+    fit = (example / "fit.toml").read_text()
+    (inp / "kin" / "negvar.toml").write_text(fit.replace("covariance = [[", "covariance = [[-", 1))
+    (inp / "kin" / "nan.toml").write_text(re.sub(r'"kappa_g" = [0-9.e-]+', '"kappa_g" = nan', fit, count=1))
+    lines = (example / "points.csv").read_text().splitlines()
+    (inp / "kin" / "percent.csv").write_text("\n".join(lines[:2] + [re.sub(r",0\.[0-9]+,", ",95,", lines[2])] + lines[3:]))
     (inp / "afile.zarr").write_text("not a store\n")
     (inp / "junk.zarr" / "zarr.json").write_text("{ not json")
     zarr.open_group(str(inp / "noconfig.zarr"), mode="w")
@@ -878,7 +917,7 @@ def test_the_table_is_large_and_covers_every_subcommand():
 SUBPROCESS = ["run PRESET: binary", "run --ratio: nan", "preset: misspelled key", "run --out missing folder",
               "overwrite: run --out the preset", "overwrite: run --out a folder of other files",
               "overwrite: import liggghts --out the case", "overwrite: run --out a pipe", "overlay CSV: negative error",
-              "drop CSV: extra cell",
+              "drop CSV: extra cell", "overwrite: kinetics fit --out the points",
               "jars show --out existing"]
 
 

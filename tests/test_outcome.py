@@ -212,7 +212,9 @@ def write_conditions(folder: Path) -> None:
 
 
 def write_points(path: Path, pts: fitting.Points) -> None:
-    lines = ["condition,time_s,value,sigma"] + [f"{c}.json,{t:.6g},{y:.6g},{s:g}" for c, t, y, s in
+    """The points as a CSV, values clipped to [0, 1] as a converted fraction is reported
+    (the noise would put some beyond; scripts/make_outcome_example.py clips the same)."""
+    lines = ["condition,time_s,value,sigma"] + [f"{c}.json,{t:.6g},{min(max(y, 0.0), 1.0):.6g},{s:g}" for c, t, y, s in
                                                  zip(pts.condition, pts.time, pts.value, pts.sigma)]
     path.write_text("\n".join(lines) + "\n")
 
@@ -300,7 +302,7 @@ def test_read_points_and_write_fit_round_trip(tmp_path):
     write_points(tmp_path / "p.csv", pts)
     back = read_points(tmp_path / "p.csv")
     assert back.condition == [f"{c}.json" for c in pts.condition]
-    np.testing.assert_allclose(back.value, pts.value, rtol=1e-5)
+    np.testing.assert_allclose(back.value, np.clip(pts.value, 0.0, 1.0), rtol=1e-5)
     f = fitting.fit(CriticalCollisions(MEASURE), {"A": A, "B": B}, pts)
     write_fit(tmp_path / "f.toml", f, "test")
     g = read_fit(tmp_path / "f.toml")

@@ -34,6 +34,8 @@ def register(sub) -> None:
     f.add_argument("--figure", type=path_text, help="measured and fitted curves with bands (PNG or SVG)")
     f.add_argument("--stress-figure", type=path_text,
                    help="the stress-model plot: measured values against the stress number above the fitted threshold")
+    f.add_argument("--overwrite", action="store_true",
+                   help="replace an existing --out, --figure or --stress-figure that taimill kinetics wrote")
     f.add_argument("--json", action="store_true", help="print one JSON object")
     f.set_defaults(fn=cmd_fit)
     q = k.add_parser("predict", help="a fit's curves and time to a target at runs, sweep points or a whole sweep")
@@ -45,6 +47,7 @@ def register(sub) -> None:
     q.add_argument("--rank", action="store_true", help="order the conditions by time to target, fastest first")
     q.add_argument("--points", type=path_text, help="measured points (CSV) to draw beside the predictions")
     q.add_argument("--figure", type=path_text, help="predicted curves with bands (PNG or SVG)")
+    q.add_argument("--overwrite", action="store_true", help="replace an existing --figure that taimill drew")
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.set_defaults(fn=cmd_predict)
 
@@ -65,7 +68,63 @@ def _fixed(texts: list[str], model) -> dict:
             out[name] = math.nan
         if not math.isfinite(out[name]):
             raise ConfigError("command line", "--fix", text, "NAME=VALUE with a finite number")
+        p = next(q for q in model.params if q.name == name)
+        if p.log and (out[name] < 0 if p.threshold else out[name] <= 0):
+            raise ConfigError("command line", "--fix", text, f"{name} allowed range {'[0' if p.threshold else '(0'}, ∞)")
     return out
+
+
+def _condition_paths(names, base: str) -> list[str]:
+    """The files and folders the conditions `names` are read from (SWEEP.zarr#3: the sweep)."""
+    out = []
+    for n in names:
+        path = n.partition("#")[0]
+        out.append(path if os.path.isabs(path) else os.path.join(base, path))
+    return out
+
+
+def _check_outputs(outputs: list[tuple], overwrite: bool, inputs) -> list[tuple]:
+    """The outputs (option, path, kind, ours, suffixes) a command will write, each
+    checked before any work: a name of the right suffix in an existing, writable folder;
+    an existing file replaced only with --overwrite, only if `ours` says taimill wrote
+    it, and never one of `inputs`; no two options naming one file."""
+    from taimill.errors import ConfigError
+    from taimill.model.files import check_output
+
+    given = [o for o in outputs if o[1]]
+    seen = {}
+    for option, path, kind, ours, suffixes in given:
+        check_output(path, option, overwrite=overwrite, suffixes=suffixes, what=kind, ours=ours, inputs=inputs)
+        real = os.path.realpath(path)
+        if real in seen:
+            raise ConfigError("command line", option, path, f"is also {seen[real]}; give each output its own file")
+        seen[real] = option
+    return given
+
+
+def _writing(outs, given: list[tuple], overwrite: bool, inputs) -> dict:
+    """option -> the path to write each output under (beside its place until `_commit`);
+    an interrupt waits until every output is held, so that none leaves its lock behind."""
+    from taimill.runs.signals import hold, release
+
+    hold()
+    try:
+        return {option: outs.add(path, ours=ours, overwrite=overwrite, option=option, what=kind, inputs=inputs,
+                                 whole=True, keep=lambda _: False)
+                for option, path, kind, ours, _ in given}
+    finally:
+        release()
+
+
+def _commit(outs) -> None:
+    """Put every finished output in its place; an interrupt waits until all are."""
+    from taimill.runs.signals import hold, release
+
+    hold()
+    try:
+        outs.commit()
+    finally:
+        release()
 
 
 def _conditions(names, base: str, source: str, pts=None) -> dict:
@@ -82,25 +141,39 @@ def _conditions(names, base: str, source: str, pts=None) -> dict:
 
 
 def cmd_fit(a) -> int:
+    from taimill.cli.calibrate import FIGURE_SUFFIXES
     from taimill.cli.common import plain
     from taimill.errors import ConfigError
+    from taimill.figures import is_figure
+    from taimill.model.files import reads
     from taimill.outcome import fit as fitting, predict
-    from taimill.outcome.files import read_points, write_fit
+    from taimill.outcome.files import check_values, is_fit_file, read_points, write_fit
     from taimill.outcome.models import MODELS
+    from taimill.store.output import Outputs
 
     if not 0.5 <= a.level < 1:
         raise ConfigError("command line", "--level", a.level, "allowed range [0.5, 1)")
     model = MODELS[a.model](a.measure, a.stress_only)
     fixed = _fixed(a.fix, model)
-    pts = read_points(a.points)
-    conds = _conditions(pts.condition, os.path.dirname(a.points) or ".", a.points, pts)
-    result = fitting.fit(model, conds, pts, fixed, a.level)
-    write_fit(a.out, result, f"taimill kinetics fit {a.points}: {model.name} ({model.quantity}) on the "
-                             f"{a.measure} spectra{', stress events only' if a.stress_only else ''}")
-    if a.figure:
-        _fit_figure(a.figure, result, conds, pts, predict)
-    if a.stress_figure:
-        _stress_figure(a.stress_figure, model, result, conds, pts)
+    base = os.path.dirname(a.points) or "."
+    with reads() as inputs:
+        pts = check_values(read_points(a.points), model)
+        conds = _conditions(pts.condition, base, a.points, pts)
+    inputs = [*inputs, a.points, *_condition_paths(pts.condition, base)]
+    given = _check_outputs([("--out", a.out, "fit file", is_fit_file, ()),
+                            ("--figure", a.figure, "figure", is_figure, FIGURE_SUFFIXES),
+                            ("--stress-figure", a.stress_figure, "figure", is_figure, FIGURE_SUFFIXES)],
+                           a.overwrite, inputs)
+    with Outputs() as outs:
+        build = _writing(outs, given, a.overwrite, inputs)
+        result = fitting.fit(model, conds, pts, fixed, a.level)
+        write_fit(build["--out"], result, f"taimill kinetics fit {a.points}: {model.name} ({model.quantity}) on the "
+                                          f"{a.measure} spectra{', stress events only' if a.stress_only else ''}")
+        if a.figure:
+            _fit_figure(build["--figure"], result, conds, pts, predict)
+        if a.stress_figure:
+            _stress_figure(build["--stress-figure"], model, result, conds, pts)
+        _commit(outs)
     for w in result.warnings:
         print(f"taimill: warning: {w}", file=sys.stderr)
     if a.json:
@@ -176,12 +249,17 @@ def _expand(names: list[str]) -> list[str]:
 def cmd_predict(a) -> int:
     import numpy as np
 
+    from taimill.cli.calibrate import FIGURE_SUFFIXES
     from taimill.cli.common import plain
     from taimill.errors import ConfigError
+    from taimill.figures import is_figure
+    from taimill.model.files import reads
     from taimill.outcome import predict
     from taimill.outcome.files import read_fit
+    from taimill.store.output import Outputs
 
-    fit = read_fit(a.fit)
+    with reads() as inputs:
+        fit = read_fit(a.fit)
     target = a.target if a.target is not None else (0.9 if fit.model == "critical-collisions" else None)
     if target is None:
         raise ConfigError("command line", "--target", None, f"missing: {fit.model} has no default target; give the value to reach")
@@ -189,7 +267,12 @@ def cmd_predict(a) -> int:
         raise ConfigError("command line", "--target", target, "allowed range (0, 1): a converted fraction")
     if a.until is not None and not a.until > 0:
         raise ConfigError("command line", "--until", a.until, "a time > 0 s")
-    conds = _conditions(_expand(a.conditions), ".", "command line")
+    with reads() as more:
+        names = _expand(a.conditions)
+        conds = _conditions(names, ".", "command line")
+        measured = _measured(a.points, fit) if a.points else {}
+    inputs = [*inputs, *more, a.fit, *_condition_paths(names, "."), *([a.points] if a.points else [])]
+    given = _check_outputs([("--figure", a.figure, "figure", is_figure, FIGURE_SUFFIXES)], a.overwrite, inputs)
     rows = []
     for name, cond in conds.items():
         t, lo, hi = predict.time_to(fit, cond, target)
@@ -197,14 +280,15 @@ def cmd_predict(a) -> int:
     if a.rank:
         rows.sort(key=lambda r: (not math.isfinite(r["time_to_target_s"]), r["time_to_target_s"]))
     longest = max((r["time_to_target_s"] for r in rows if math.isfinite(r["time_to_target_s"])), default=3600.0)
-    measured = _measured(a.points) if a.points else {}
     last = max((float(max(t)) for t, _, _ in measured.values()), default=0.0)
     times = np.linspace(0.0, a.until or max(1.5 * longest, 1.1 * last), CURVE_POINTS)
     for r in rows:
         y, lo, hi = predict.curve(fit, conds[r["condition"]], times)
         r["curve"] = {"time_s": times, "value": y, "lower": lo, "upper": hi}
     if a.figure:
-        _predict_figure(a.figure, fit, rows, measured, target, predict)
+        with Outputs() as outs:
+            _predict_figure(_writing(outs, given, a.overwrite, inputs)["--figure"], fit, rows, measured, target, predict)
+            _commit(outs)
     if a.json:
         print(json.dumps(plain({"model": fit.model, "measure": fit.measure, "target": target, "level": fit.level,
                                 "conditions": [r | {"curve": {k: list(v) for k, v in r["curve"].items()}} for r in rows]})))
@@ -227,12 +311,14 @@ def predict_table(fit, rows: list[dict], target: float) -> str:
     return "\n".join(lines)
 
 
-def _measured(points_csv: str) -> dict:
-    """label -> (time_s, value, sigma) of a points CSV; its conditions, named from the
-    CSV's folder, labelled by their path from here like the predicted curves."""
-    from taimill.outcome.files import read_points
+def _measured(points_csv: str, fit) -> dict:
+    """label -> (time_s, value, sigma) of a points CSV, its values in the range of the
+    fit's model; its conditions, named from the CSV's folder, labelled by their path
+    from here like the predicted curves."""
+    from taimill.outcome.files import check_values, read_points
+    from taimill.outcome.models import MODELS
 
-    pts, out = read_points(points_csv, key="--points"), {}
+    pts, out = check_values(read_points(points_csv, key="--points"), MODELS[fit.model]), {}
     for c in dict.fromkeys(pts.condition):
         sel = [i for i, n in enumerate(pts.condition) if n == c]
         label = os.path.normpath(os.path.join(os.path.dirname(points_csv), c))

@@ -52,6 +52,7 @@ class Points:
     source: str = "points"
     lines: list[int] | None = None  #: each point's line in its file
     condition_column: int = 1  #: the condition's column in the file (1 = first)
+    value_column: int = 3  #: the value's column in the file
 
 
 @dataclass

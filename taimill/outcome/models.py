@@ -54,6 +54,8 @@ class CriticalCollisions:
     name = "critical-collisions"
     quantity = "converted fraction α"
     drive = "rate"  #: the Condition curve the threshold acts through
+    values = (0.0, 1.0)  #: what a measured α may be: a fraction, never a percent
+    values_text = "[0, 1] (a fraction; percent? divide by 100)"
     params = (Param("kappa_g", True, "powder mass one critical collision converts (g)"),
               Param("e_star_J", True, "critical energy E* (J)", threshold=True))
 
@@ -109,6 +111,7 @@ class DoseExponential:
     name = "dose-exponential"
     quantity = "y (a size)"
     drive = "power"
+    values = None  #: any finite y (the unit is the user's)
     params = (Param("y0", False, "y before milling"), Param("y_inf", False, "y after a very large dose"),
               Param("e_c_kJ_per_g", True, "characteristic specific energy E_c (kJ/g)"),
               Param("e_threshold_J", True, "events below this energy do not count (J)", threshold=True))
@@ -146,6 +149,7 @@ class DosePower:
     name = "dose-power"
     quantity = "y (a size)"
     drive = "power"
+    values = None  #: any finite y (the unit is the user's)
     params = (Param("y0", False, "y before milling"),
               Param("e_c_kJ_per_g", True, "specific energy where y has fallen by 2^n (kJ/g)"),
               Param("n", True, "exponent"),

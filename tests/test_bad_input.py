@@ -104,6 +104,7 @@ TOML_READERS = {
     "preset jar key": (["run", "{P:jar}"], "jar"),
     "preset pair key": (["run", "{P:pair}"], "pair"),
     "kinetics predict FIT": (["kinetics", "predict", "{F}", "{in}/condition.json"], "FIT"),
+    "sizes predict PARAMS": (["sizes", "predict", "{F}", "{in}/kin/condition-a.json", "--feed-x50", "100"], "PARAMS"),
     "design PRESET": (["design", "{F}", "--out", "{work}/study"], "preset"),
 }
 CSV_READERS = {
@@ -111,6 +112,7 @@ CSV_READERS = {
     "report --overlay": (["report", "{in}/sweep.zarr", "--overlay", "{F}"], "--overlay"),
     "preset initial_positions key": (["run", "{P:initial_positions}"], "initial_positions"),
     "kinetics fit POINTS": (["kinetics", "fit", "{F}", "--out", "{work}/new.toml"], "POINTS"),
+    "sizes check SIZES": (["sizes", "check", "{F}"], "SIZES"),
 }
 
 
@@ -646,6 +648,32 @@ PAIRS = {
     "contact ball material unknown": (_edit(GOOD_PAIR, 'ball = "steel-c1020"', 'ball = "gold"'), ["material", "gold"]),
 }
 # name -> (drop CSV text, words) for `calibrate fit --data`
+SIZE_HEAD = "condition,time_h,size_um,passing_pct\n"
+SIZE_CSVS = {  # measured size distributions: each slip named with its line and column
+    "no size column": ("condition,time_h,passing_pct\na.json,1,50\n", ["header", "no column for the size", "size_um"]),
+    "a column without unit": ("condition,time_h,size,passing_pct\na.json,1,10,50\n", ["'size' has no unit", "size_um"]),
+    "sizes not increasing": (SIZE_HEAD + "a.json,1,10,20\na.json,1,30,60\na.json,1,20,70\n",
+                             ["line 4", "column 3 (size_um) = '20'", "must increase", "line 3 had 30"]),
+    "passing above 100 %": (SIZE_HEAD + "a.json,1,10,20\na.json,1,30,104\n", ["line 3", "column 4 (passing_pct)", "[0, 100]"]),
+    "percent under a fraction's name": ("condition,time_h,size_um,passing_fraction\na.json,1,10,45\n",
+                                        ["line 2", "passing_fraction", "'45'", "percent under a fraction's name?", "passing_pct"]),
+    "metres under µm": (SIZE_HEAD + "a.json,1,0.00001,20\n", ["line 2", "size_um", "[1 nm, 100 mm]", "size_m"]),
+    "µm under metres": ("condition,time_h,size_m,passing_pct\na.json,1,12,20\n", ["line 2", "size_m", "size_um"]),
+    "passing falls with size": (SIZE_HEAD + "a.json,1,10,40\na.json,1,30,30\n", ["line 3", "cannot fall", "line 2 had 40"]),
+    "a distribution interrupted": (SIZE_HEAD + "a.json,1,10,40\nb.json,1,10,30\na.json,1,30,60\n",
+                                   ["line 4", "began at line 2", "together"]),
+    "negative time": (SIZE_HEAD + "a.json,-1,10,40\n", ["line 2", "time_h", "≥ 0"]),
+    "size text": (SIZE_HEAD + "a.json,1,ten,40\n", ["line 2", "size_um", "not a number"]),
+}
+GRINDING = "[breakage]\nphi = 0.4\ngamma = 0.9\nbeta = 3.5\n[impact]\ncapture_g = 0.001\nf_mat = 0.5\nxw_min = 0.05\n"
+GRINDING_FILES = {  # grinding parameter files of taimill sizes predict
+    "phi above 1": (GRINDING.replace("phi = 0.4", "phi = 1.4"), ["breakage.phi", "1.4", "(0, 1]"]),
+    "gamma above beta": (GRINDING.replace("gamma = 0.9", "gamma = 4"), ["breakage.gamma", "below beta"]),
+    "negative capture": (GRINDING.replace("capture_g = 0.001", "capture_g = -1"), ["impact.capture_g", "(0, ∞) g"]),
+    "unknown key": (GRINDING + "speed = 3\n", ["impact.speed", "unknown key"]),
+    "no breakage": ("[impact]\ncapture_g = 0.001\nf_mat = 0.5\n", ["breakage", "missing"]),
+    "unknown measure": (GRINDING + 'measure = "heat"\n', ["impact.measure", "'heat'", "dissipated_normal"]),
+}
 DROP_CSVS = {
     "no h0 column": ("height,bounce\n100,76\n", ["columns", "h0_mm"]),
     "negative height": ("h0_mm,rebound_mm\n100,76\n-200,150\n", ["h0_mm (line 3)", "-200"]),
@@ -728,6 +756,13 @@ def _content_cases():
         cases.append((f"export liggghts: {name}", ["export", "liggghts", f"{{in}}/presets/export-{_slug(name)}.toml",
                                                    *extra_argv, "--out", "{work}/case"], words,
                       {"write": (f"presets/export-{_slug(name)}.toml", text)}))
+    for name, (text, words) in SIZE_CSVS.items():
+        cases.append((f"size CSV: {name}", ["sizes", "check", f"{{in}}/csv/sz-{_slug(name)}.csv"], words,
+                      {"write": (f"csv/sz-{_slug(name)}.csv", text)}))
+    for name, (text, words) in GRINDING_FILES.items():
+        cases.append((f"grinding file: {name}", ["sizes", "predict", f"{{in}}/gr-{_slug(name)}.toml",
+                                                 "{in}/kin/condition-a.json", "--feed-x50", "100"], words,
+                      {"write": (f"gr-{_slug(name)}.toml", text)}))
     for name, (text, words) in OVERLAYS.items():
         cases.append((f"overlay CSV: {name}", ["report", "{in}/sweep.zarr", "--out", "{work}/rep", "--overlay", f"{{in}}/csv/ov-{_slug(name)}.csv"],
                       words, {"write": (f"csv/ov-{_slug(name)}.csv", text)}))
@@ -917,7 +952,8 @@ def test_the_table_is_large_and_covers_every_subcommand():
 SUBPROCESS = ["run PRESET: binary", "run --ratio: nan", "preset: misspelled key", "run --out missing folder",
               "overwrite: run --out the preset", "overwrite: run --out a folder of other files",
               "overwrite: import liggghts --out the case", "overwrite: run --out a pipe", "overlay CSV: negative error",
-              "drop CSV: extra cell", "overwrite: kinetics fit --out the points",
+              "drop CSV: extra cell", "overwrite: kinetics fit --out the points", "size CSV: sizes not increasing",
+              "size CSV: percent under a fraction's name",
               "jars show --out existing"]
 
 

@@ -117,3 +117,56 @@ def test_quantiles_of_a_log_normal_feed():
 def test_size_classes_refuse_what_is_not_a_sieve_series(bad):
     with pytest.raises(ValueError):
         SizeClasses(**bad)
+
+
+# ---------------------------------------------------------------- through the real CLI
+def _cli(*args, cwd=ROOT):
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "taimill", *map(str, args)], cwd=cwd, capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_sizes_check_reads_units_from_the_header(tmp_path):
+    # the same log-normal distribution in µm and percent, and in mm and fractions: one x50
+    m0 = feed(CLASSES, 100e-6, 0.5)
+    q = passing(CLASSES, m0)[0][::-1]
+    x = CLASSES.edges[::-1]
+    keep = (q > 0.001) & (q < 0.999)
+    um = ["condition,time_h,size_um,passing_pct"] + [f"a.json,0,{xi * 1e6:.9g},{qi * 100:.9g}" for xi, qi in zip(x[keep], q[keep])]
+    mm = ["condition,time_min,size_mm,passing_fraction"] + [f"a.json,0,{xi * 1e3:.9g},{qi:.9g}" for xi, qi in zip(x[keep], q[keep])]
+    for name, lines in (("um.csv", um), ("mm.csv", mm)):
+        (tmp_path / name).write_text("\n".join(lines) + "\n")
+        res = _cli("sizes", "check", tmp_path / name, "--json")
+        assert res.returncode == 0, res.stderr
+        import json
+
+        d = json.loads(res.stdout)["distributions"]
+        assert len(d) == 1 and d[0]["x50_m"] == pytest.approx(100e-6, rel=0.02) and d[0]["points"] == keep.sum()
+
+
+def test_sizes_predict_grinds_finer_with_time_and_finds_the_time_to_a_target(tmp_path):
+    import json
+
+    (tmp_path / "params.toml").write_text("[breakage]\nphi = 0.4\ngamma = 0.9\nbeta = 3.5\n[impact]\ncapture_g = 0.001\n"
+                                          "f_mat = 0.5\nxw_min = 0.05\n")
+    a, b = (ROOT / "examples" / "outcome" / f"condition-{c}.json" for c in "ab")
+    res = _cli("sizes", "predict", tmp_path / "params.toml", a, b, "--feed-x50", 200, "--hours", "0,1,4",
+               "--target-x90", 20, "--json")
+    assert res.returncode == 0, res.stderr
+    rows = json.loads(res.stdout)["conditions"]
+    for r in rows:
+        x90 = r["x90_m"]
+        assert x90[0] == pytest.approx(200e-6 * math.exp(1.2816 * 0.5), rel=0.03) and x90[0] > x90[1] > x90[2]
+        t = r["time_to_target_x90_s"]
+        assert 0 < t < math.inf
+    # the time found is where the curve crosses the target
+    cond = read_file(a)
+    g = Grinding(AUSTIN.__class__(0.4, 0.9, 3.5), capture_g=1e-3, f_mat=0.5, xw_min=0.05)
+    classes = SizeClasses.spanning(0.1e-6, 800e-6)
+    m0 = feed(classes, 200e-6, 0.5)
+    t = rows[0]["time_to_target_x90_s"]
+    before, after = (quantile_size(classes, passing(classes, grind(g, classes, cond, m0, [f * t])), 0.9)[0]
+                     for f in (0.99, 1.01))
+    assert before > 20e-6 >= after

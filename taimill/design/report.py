@@ -79,13 +79,13 @@ def best_references(references: dict, objective) -> dict:
 def beats(design: dict, ref: dict, objective) -> tuple[bool, float]:
     """(whether the design's band lies beyond the reference's, the margin in units of s_d + s_r).
     Only for figures with a spread (`comparable`)."""
-    (md, _, _), (mr, _, _) = design["figures"][objective.key], ref["figures"][objective.key]
-    sd, sr = spread(design["figures"][objective.key]), spread(ref["figures"][objective.key])
+    d, r = design["figures"][objective.key], ref["figures"][objective.key]
+    sd, sr = spread(d), spread(r)
     if sd is None or sr is None:
         raise ValueError("beats: a figure without a spread (one replica) is compared with nothing")
-    diff = (md - mr) * (1 if objective.direction == "maximize" else -1)
-    spread = sd + sr
-    return bool(diff > spread), diff / spread if spread > 0 else math.inf
+    diff = (d[0] - r[0]) * (1 if objective.direction == "maximize" else -1)
+    band = sd + sr
+    return bool(diff > band), diff / band if band > 0 else math.inf
 
 
 def results(study, references: dict, keep: int = 3) -> dict:

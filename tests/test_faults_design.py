@@ -31,7 +31,8 @@ def command(*args) -> list[str]:
 
 
 def taimill(*args, timeout=300) -> subprocess.CompletedProcess:
-    return subprocess.run(command(*args), cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(command(*args), cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=timeout,
+                          check=False)
 
 
 def start(*args, **kw) -> subprocess.Popen:
@@ -102,7 +103,8 @@ def _flip(db: Path):
 
 
 DAMAGE = {
-    "truncated": (lambda db: db.write_bytes(db.read_bytes()[: db.stat().st_size // 3]), "damaged (database disk image is malformed)"),
+    "truncated": (lambda db: db.write_bytes(db.read_bytes()[: db.stat().st_size // 3]),
+                  "damaged (database disk image is malformed)"),
     "bit-flipped": (_flip, "damaged ("),
     "text": (lambda db: db.write_text("my notes, saved over the study\n"), "not an SQLite database"),
     "folder": (lambda db: (db.unlink(), db.mkdir()), "is a folder, not an SQLite file"),
@@ -121,7 +123,8 @@ def test_a_damaged_study_database_is_refused_in_one_line_saying_how_to_recover(s
     line = one_line(res.stderr)
     assert res.returncode == 2 and res.stdout == "", res.stderr
     assert line.startswith(f"taimill: error: {db}: study database: {words}"), line
-    assert f"move it away to start a new study, or restore it from a copy (the designs already written are in {out / 'jars'}" in line
+    assert ("move it away to start a new study, or restore it from a copy "
+            f"(the designs already written are in {out / 'jars'}") in line
     assert "design: evaluating" not in res.stderr  # refused before anything ran
     assert (db.read_bytes() if db.is_file() else None) == before and left_behind(out) == []
 
@@ -161,7 +164,8 @@ def test_two_designers_started_together_one_runs_the_other_is_refused(tmp_path):
 def small_disk(tmp_path):
     mnt = tmp_path / "disk"
     mnt.mkdir()
-    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mnt)], capture_output=True, text=True)
+    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mnt)], capture_output=True, text=True,
+                         check=False)
     if res.returncode != 0:
         pytest.skip(f"cannot mount a small tmpfs here ({res.stderr.strip() or res.returncode})")
     try:
@@ -197,11 +201,11 @@ def read_only(tmp_path, study):
     src, mnt = tmp_path / "src", tmp_path / "ro"
     shutil.copytree(study, src / "study")
     mnt.mkdir()
-    res = subprocess.run(["mount", "--bind", str(src), str(mnt)], capture_output=True, text=True)
+    res = subprocess.run(["mount", "--bind", str(src), str(mnt)], capture_output=True, text=True, check=False)
     if res.returncode != 0:
         pytest.skip(f"cannot bind-mount here ({res.stderr.strip() or res.returncode})")
     try:
-        res = subprocess.run(["mount", "-o", "remount,ro,bind", str(mnt)], capture_output=True, text=True)
+        res = subprocess.run(["mount", "-o", "remount,ro,bind", str(mnt)], capture_output=True, text=True, check=False)
         if res.returncode != 0:
             pytest.skip(f"cannot remount read-only here ({res.stderr.strip() or res.returncode})")
         yield mnt

@@ -193,7 +193,8 @@ def _check_out(out: Path) -> None:
 
     if out.exists() and not out.is_dir():
         raise ConfigError("command line", "--out", str(out), "is a file; give a study folder")
-    if out.is_dir() and not (out / DATABASE).exists() and any(p.name != lock_path(DATABASE).name for p in out.iterdir()):
+    others = out.is_dir() and any(p.name != lock_path(DATABASE).name for p in out.iterdir())
+    if others and not (out / DATABASE).exists():
         raise ConfigError("command line", "--out", str(out), "is a folder with other files and no study.db; give a new or a study folder")
     check_output(str(out), "--out", folder=True, overwrite=None)
 

@@ -207,8 +207,8 @@ def write_markdown(res: dict, path: Path) -> None:
         lines.append(f"| reference {name} | {ref['ratio']:.3g} | " + " | ".join(_fmt(ref["figures"][k]) for k in keys)
                      + " | (bundled) |")
     if res["spread"] == UNKNOWN:
-        lines += ["", "Spread unknown (1 replica): no design is compared with a reference or said to beat one; "
-                  "run 2 or more --replicas to compare."]
+        lines += ["", ("Spread unknown (1 replica): no design is compared with a reference or said to beat one; "
+                       "run 2 or more --replicas to compare.")]
     if res["comparison"]:
         lines += ["", f"Design 1 against each reference on {objs[0]} (beats: the bands mean ± s do not overlap):", ""]
         ks = sorted({float(k) for by_k in res["reference_grid"].values() for k in by_k})

@@ -45,9 +45,10 @@ def draw_report(res: dict, outlines: dict, radius_mm: float, path) -> Path:
     cols = max(len(panels), 2)
     fig = plt.figure(figsize=(max(12, 2.4 * cols), 9), constrained_layout=True)
     grid = fig.add_gridspec(2, cols, height_ratios=[1, 1.5])
+    spread = ("1 replica: spread unknown (± ?), nothing compared" if res["spread"].startswith("unknown")
+              else "mean ± replicas' s.d.")
     fig.suptitle(f"Jar design ({res['family']} family): {', '.join(res['objectives'])}; {res['evaluated']} designs, "
-                 f"{res['pruned']} pruned; " + ("mean ± replicas' s.d." if not res["spread"].startswith("unknown")
-                                                  else "1 replica: spread unknown (± ?), nothing compared"))
+                 f"{res['pruned']} pruned; {spread}")
     lim = 1.1 * radius_mm
     for i, (title, name, designed) in enumerate(panels):
         ax = fig.add_subplot(grid[0, i])
@@ -73,7 +74,8 @@ def draw_report(res: dict, outlines: dict, radius_mm: float, path) -> Path:
         m, s, _ = ref["figures"][key]
         if s is not None:
             ax.axhspan(m - s, m + s, color=f"C{j + 2}", alpha=0.2)
-        ax.axhline(m, color=f"C{j + 2}", lw=1, label=f"{name} (K {ref['ratio']:.3g})" + (" ± s" if s is not None else ""))
+        band = " ± s" if s is not None else ""
+        ax.axhline(m, color=f"C{j + 2}", lw=1, label=f"{name} (K {ref['ratio']:.3g}){band}")
     ax.set(xlabel="trial", ylabel=f"{key} ({_unit(key)})", title="objective history")
     ax.legend(fontsize=7)
     ax = fig.add_subplot(grid[1, half:])

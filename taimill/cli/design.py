@@ -4,9 +4,11 @@ lives in DIR (SQLite); the same command resumes it."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
+import sqlite3
 import sys
 from pathlib import Path
 
@@ -183,10 +185,62 @@ def _fixed_gear(a) -> str:
 
 
 def _check_out(out: Path) -> None:
+    """A new folder or a study's (a lock left by a study killed before its database
+    was made is no other file); writable, checked before anything runs."""
+    from taimill.design.study import DATABASE
+    from taimill.model.files import check_output
+    from taimill.store.output import lock_path
+
     if out.exists() and not out.is_dir():
         raise ConfigError("command line", "--out", str(out), "is a file; give a study folder")
-    if out.is_dir() and any(out.iterdir()) and not (out / "study.db").exists():
+    others = out.is_dir() and any(p.name != lock_path(DATABASE).name for p in out.iterdir())
+    if others and not (out / DATABASE).exists():
         raise ConfigError("command line", "--out", str(out), "is a folder with other files and no study.db; give a new or a study folder")
+    check_output(str(out), "--out", folder=True, overwrite=None)
+
+
+def _sqlite_error(err: BaseException) -> str | None:
+    """The SQLite error under an Optuna or SQLAlchemy one, if that is what it is."""
+    seen = set()
+    while err is not None and id(err) not in seen:
+        seen.add(id(err))
+        orig = getattr(err, "orig", None)  # SQLAlchemy's DBAPIError
+        if isinstance(err, sqlite3.Error) or isinstance(orig, sqlite3.Error):
+            return str(err if isinstance(err, sqlite3.Error) else orig)
+        err = err.__cause__ or err.__context__
+    return None
+
+
+@contextlib.contextmanager
+def _kept(study):
+    """Faults while the study runs as one line saying what is kept: Ctrl-C (130) and
+    SIGTERM (143), a refused write (5: a full disk, SQLite's "database or disk is full"
+    too) and a database found damaged only while in use (2). The study database is
+    transactional: whatever stopped the study, the same command resumes it."""
+    from taimill.design.study import damaged
+    from taimill.errors import Interrupted, StoreWriteError
+    from taimill.store.output import refused
+
+    def kept():
+        if study.database.exists():
+            return f"the study so far is in {study.database}; the same command resumes it"
+        return f"no study was stored in {study.out} yet"
+
+    try:
+        yield
+    except KeyboardInterrupt as err:
+        raise Interrupted(f"{str(err) or 'interrupted'}; {kept()}", getattr(err, "exit_code", 130)) from None
+    except StoreWriteError as err:
+        raise StoreWriteError(err.source, err.key, f"{err.allowed}; {kept()}") from None
+    except OSError as err:
+        raise StoreWriteError(err.filename or study.out, "write", f"write failed ({refused(err)}); {kept()}") from None
+    except Exception as err:
+        why = _sqlite_error(err)
+        if why is None:
+            raise
+        if "malformed" in why or "not a database" in why:
+            raise damaged(study.database, f"damaged ({why})") from None
+        raise StoreWriteError(study.database, "study database", f"write failed ({why}); {kept()}") from None
 
 
 def cmd_design(a) -> int:
@@ -214,13 +268,18 @@ def cmd_design(a) -> int:
     def log(text):
         print(text, file=sys.stderr, flush=True)
 
+    from taimill.store.output import OutputLock
+
     study = Study(out, s, workers=a.workers, scheduler=a.scheduler, log=log)
-    references = evaluate_references(study, refs, ratios)
-    study.run(a.trials)
-    res = report.results(study, references, a.keep)
-    if a.confirm and res["best"]:
-        res["confirmation"] = confirm(study, res, a.confirm)
-    report.write_all(study, res)
+    # one designer per study folder (a second is refused naming the first), for the whole study
+    with OutputLock(study.database), _kept(study):
+        study.open()
+        references = evaluate_references(study, refs, ratios)
+        study.run(a.trials)
+        res = report.results(study, references, a.keep)
+        if a.confirm and res["best"]:
+            res["confirmation"] = confirm(study, res, a.confirm)
+        report.write_all(study, res)
     if a.json:
         print(json.dumps(res, default=float))
     else:
@@ -255,10 +314,11 @@ def confirm(study, res: dict, duration: float) -> dict:
             for (n, (_, k)), r in zip(cands.items(), results)}
     o = study.s.objectives[0]
     comparison = {n: dict(zip(("beats", "margin"), report.beats(jars["design 1"], ref, o)))
-                  for n, ref in jars.items() if n != "design 1"}
+                  for n, ref in jars.items() if n != "design 1" and report.comparable(study)}
     out = {"duration": duration, "analysis_start": start, "replicas": study.s.replicas, "jars": jars,
            "comparison": comparison}
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps({"identity": identity, "confirmation": out}, indent=1))
-    tmp.replace(path)
+    from taimill.store.output import whole_file
+
+    with whole_file(path, "confirmation") as part:
+        part.write_text(json.dumps({"identity": identity, "confirmation": out}, indent=1))
     return out

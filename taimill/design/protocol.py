@@ -73,12 +73,13 @@ def value_of(summary: dict, key: str) -> float:
     return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
 
 
-def mean_spread(values: list[float]) -> tuple[float, float]:
-    """(mean, sample standard deviation) of the replicas; spread 0 for one replica."""
+def mean_spread(values: list[float]) -> tuple[float, float | None]:
+    """(mean, sample standard deviation) of the replicas. One replica has no spread: it
+    is None (unknown), never 0, which would let any difference count as significant."""
     values = [v for v in values if math.isfinite(v)]
     if not values:
         return math.nan, math.nan
-    return statistics.fmean(values), statistics.stdev(values) if len(values) > 1 else 0.0
+    return statistics.fmean(values), statistics.stdev(values) if len(values) > 1 else None
 
 
 @dataclass

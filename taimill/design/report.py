@@ -5,7 +5,9 @@ history and the Pareto front (or, for one objective, the objective against K).
 
 Every figure is the mean over the replicas ± the replicas' sample standard deviation.
 A design "beats" a reference when its band lies wholly beyond the reference's:
-|mean_d − mean_r| > s_d + s_r in the objective's direction."""
+|mean_d − mean_r| > s_d + s_r in the objective's direction. One replica has no spread:
+its figures read "± ?" and nothing is compared (`comparable`), since a spread taken as 0
+would let any difference count."""
 
 from __future__ import annotations
 
@@ -16,6 +18,24 @@ from pathlib import Path
 from taimill.design import families
 
 MM = 1e3
+UNKNOWN = "unknown: one replica per design; 2 or more --replicas are needed to compare designs and references"
+
+
+def spread(fig) -> float | None:
+    """A figure's spread, None where fewer than two replicas give it (a study stored
+    before one replica's spread was None has 0 there)."""
+    _, s, values = fig
+    return s if s is not None and sum(map(math.isfinite, values)) >= 2 else None
+
+
+def known(figs: dict) -> dict:
+    """{key: [mean, spread or None, values]}: `spread` for every figure."""
+    return {k: [f[0], spread(f), f[2]] for k, f in figs.items()}
+
+
+def comparable(study) -> bool:
+    """Designs and references are compared only with a spread: two replicas or more."""
+    return study.s.replicas >= 2
 
 
 def trial_rows(study) -> list[dict]:
@@ -25,7 +45,7 @@ def trial_rows(study) -> list[dict]:
     rows = []
     for t in study.evaluated():
         design, ratio = study.design_of(t.params)
-        rows.append({"trial": t.number, "params": design, "ratio": ratio, "figures": t.user_attrs["figures"],
+        rows.append({"trial": t.number, "params": design, "ratio": ratio, "figures": known(t.user_attrs["figures"]),
                      "feasible": feasible(t) and t.state.name == "COMPLETE", "state": t.state.name,
                      "jar": str(study.jar_path(t.number))})
     return rows
@@ -52,17 +72,20 @@ def best_references(references: dict, objective) -> dict:
     for name, by_k in references.items():
         k = max(by_k, key=lambda k: by_k[k][objective.key][0] * (1 if objective.direction == "maximize" else -1)
                 if math.isfinite(by_k[k][objective.key][0]) else -math.inf)
-        out[name] = {"ratio": float(k), "figures": by_k[k]}
+        out[name] = {"ratio": float(k), "figures": known(by_k[k])}
     return out
 
 
 def beats(design: dict, ref: dict, objective) -> tuple[bool, float]:
-    """(whether the design's band lies beyond the reference's, the margin in units of s_d + s_r)."""
-    md, sd, _ = design["figures"][objective.key]
-    mr, sr, _ = ref["figures"][objective.key]
-    diff = (md - mr) * (1 if objective.direction == "maximize" else -1)
-    spread = sd + sr
-    return bool(diff > spread), diff / spread if spread > 0 else math.inf
+    """(whether the design's band lies beyond the reference's, the margin in units of s_d + s_r).
+    Only for figures with a spread (`comparable`)."""
+    d, r = design["figures"][objective.key], ref["figures"][objective.key]
+    sd, sr = spread(d), spread(r)
+    if sd is None or sr is None:
+        raise ValueError("beats: a figure without a spread (one replica) is compared with nothing")
+    diff = (d[0] - r[0]) * (1 if objective.direction == "maximize" else -1)
+    band = sd + sr
+    return bool(diff > band), diff / band if band > 0 else math.inf
 
 
 def results(study, references: dict, keep: int = 3) -> dict:
@@ -78,14 +101,16 @@ def results(study, references: dict, keep: int = 3) -> dict:
         best = pareto(rows, objs)
     refs = best_references(references, objs[0]) if references else {}
     comparison = {}
-    if best and refs:
+    if best and refs and comparable(study):
         comparison = {n: dict(zip(("beats", "margin"), beats(best[0], r, objs[0]))) for n, r in refs.items()}
     pruned = [t for t in study.study.get_trials(deepcopy=False) if t.user_attrs.get("violations")]
     return {"objectives": [o.label for o in objs], "floors": study.s.floors, "family": study.s.family,
-            "spread": "sample standard deviation of the replicas (ddof 1)",
+            "spread": "sample standard deviation of the replicas (ddof 1)" if comparable(study) else UNKNOWN,
             "settings": study.s.identity(), "evaluated": len(rows), "pruned": len(pruned),
             "runs": len(rows) * study.s.replicas + sum(len(v) for v in references.values()) * study.s.replicas,
-            "searched": sorted(study.distributions()), "best": best, "references": refs, "reference_grid": references, "comparison": comparison,
+            "searched": sorted(study.distributions()), "best": best, "references": refs,
+            "reference_grid": {n: {k: known(f) for k, f in by_k.items()} for n, by_k in references.items()},
+            "comparison": comparison,
             "history": [{"trial": r["trial"], "ratio": r["ratio"], "feasible": r["feasible"],
                          **{o.key: r["figures"][o.key][0] for o in objs}} for r in rows]}
 
@@ -99,7 +124,8 @@ def write_best(study, res: dict) -> list[Path]:
         old.unlink()
     paths = []
     for i, r in enumerate(res["best"], 1):
-        figs = [f"{k} = {m:.5g} ± {s:.2g} {study_unit(k)} (mean ± sample s.d. of {len(v)} replicas)"
+        figs = [f"{k} = {m:.5g} ± {s:.2g} {study_unit(k)} (mean ± sample s.d. of {len(v)} replicas)" if s is not None
+                else f"{k} = {m:.5g} ± ? {study_unit(k)} (spread unknown: {len(v)} replica)"
                 for k, (m, s, v) in r["figures"].items()]
         path = folder / f"design-{i}.toml"
         extra = [f"Run it (from the study folder {study.out.name}): {run_line(study, path, r['ratio'])}", *figs]
@@ -160,7 +186,7 @@ def study_unit(key: str) -> str:
 
 def _fmt(fig) -> str:
     m, s, _ = fig
-    return f"{m:.4g} ± {s:.2g}"
+    return f"{m:.4g} ± {s:.2g}" if s is not None else f"{m:.4g} ± ?"
 
 
 def write_markdown(res: dict, path: Path) -> None:
@@ -168,7 +194,9 @@ def write_markdown(res: dict, path: Path) -> None:
     keys = [o.rpartition(":")[0] for o in objs]
     lines = [f"# Jar design study: {', '.join(objs)}", "",
              f"Family `{res['family']}`; {res['evaluated']} designs evaluated, {res['pruned']} pruned by the "
-             f"constraints before any run; {res['runs']} short runs. Figures: mean ± {res['spread']}.", ""]
+             f"constraints before any run; {res['runs']} short runs. "
+             + (f"Figures: mean ± {res['spread']}." if res["spread"] != UNKNOWN else
+                "Figures: the one replica's value ± ? (spread unknown: 1 replica)."), ""]
     if res["floors"]:
         lines += ["Floors: " + ", ".join(f"{k} ≥ {v:g}" for k, v in res["floors"].items()), ""]
     lines += ["| design | K | " + " | ".join(keys) + " | jar file |", "|---|---|" + "---|" * len(keys) + "---|"]
@@ -178,6 +206,9 @@ def write_markdown(res: dict, path: Path) -> None:
     for name, ref in res["references"].items():
         lines.append(f"| reference {name} | {ref['ratio']:.3g} | " + " | ".join(_fmt(ref["figures"][k]) for k in keys)
                      + " | (bundled) |")
+    if res["spread"] == UNKNOWN:
+        lines += ["", ("Spread unknown (1 replica): no design is compared with a reference or said to beat one; "
+                       "run 2 or more --replicas to compare.")]
     if res["comparison"]:
         lines += ["", f"Design 1 against each reference on {objs[0]} (beats: the bands mean ± s do not overlap):", ""]
         ks = sorted({float(k) for by_k in res["reference_grid"].values() for k in by_k})
@@ -212,9 +243,15 @@ def draw(study, res: dict, path: Path) -> Path:
 
 
 def write_all(study, res: dict) -> dict:
-    """best/*.toml, summary.json, summary.md and report.png in the study folder."""
+    """best/*.toml, summary.json, summary.md and report.png in the study folder, each
+    whole or not at all (an interrupt or a full disk leaves the file as it was)."""
+    from taimill.store.output import whole_file
+
     write_best(study, res)
-    (study.out / "summary.json").write_text(json.dumps(res, indent=1, default=float))
-    write_markdown(res, study.out / "summary.md")
-    draw(study, res, study.out / "report.png")
+    with whole_file(study.out / "summary.json", "summary") as part:
+        part.write_text(json.dumps(res, indent=1, default=float))
+    with whole_file(study.out / "summary.md", "summary") as part:
+        write_markdown(res, part)
+    with whole_file(study.out / "report.png", "report page") as part:
+        draw(study, res, part)
     return res

@@ -16,20 +16,30 @@ being asked (its parameters possibly incomplete, its constraints not yet checked
 marked `abandoned`, failed, and asked again: the seed counts live trials only, so the
 new ask draws the same design (trial numbers shift by one; the designs do not). An interrupted and resumed study
 therefore ends with the same designs as an uninterrupted one with the same seed.
+
+The database is checked before Optuna opens it (`check_database`): a damaged one would
+otherwise end the study in a SQLAlchemy traceback, or be written on. Every file the
+study writes beside it (jar files, references.json) appears whole or not at all.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+import os
+import sqlite3
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from taimill.design import constraints, families
 from taimill.design.protocol import Protocol, evaluate, figures
-from taimill.errors import ConfigError
+from taimill.errors import ConfigError, StoreError, one_line
+from taimill.store.output import whole_file
 
 STUDY = "design"
+DATABASE = "study.db"
+SQLITE_HEADER = b"SQLite format 3\x00"
 MAX_PRUNED = 50  #: candidates pruned per wanted candidate of a batch before the batch stops asking
 
 
@@ -82,18 +92,31 @@ class Study:
             if not p.lo <= v <= p.hi or (p.integer and v != int(v)):
                 raise ConfigError("command line", "--fix", f"{k}={v:g}", f"allowed range [{p.lo:g}, {p.hi:g}]"
                                   + (", an integer" if p.integer else ""))
-        self.out.mkdir(parents=True, exist_ok=True)  # only once the settings are checked
-        (self.out / "jars").mkdir(exist_ok=True)
-        directions = [o.direction for o in settings.objectives]
-        storage = f"sqlite:///{(self.out / 'study.db').resolve()}"
+        self.study = None  # open(): the settings are checked before anything is written
+
+    @property
+    def database(self) -> Path:
+        return self.out / DATABASE
+
+    def open(self) -> "Study":
+        """Create or resume the stored study (the caller holds the folder's lock)."""
+        import optuna
+
+        check_database(self.database)
+        self.out.mkdir(parents=True, exist_ok=True)
+        directions = [o.direction for o in self.s.objectives]
+        storage = f"sqlite:///{self.database.resolve()}"
         self.study = optuna.create_study(study_name=STUDY, storage=storage, directions=directions, load_if_exists=True)
+        (self.out / "jars").mkdir(exist_ok=True)  # after the database: a folder with jars/ alone is not a study
         stored = self.study.user_attrs.get("settings")
+        identity = json.loads(json.dumps(self.s.identity()))
         if stored is None:
-            self.study.set_user_attr("settings", settings.identity())
-        elif stored != json.loads(json.dumps(settings.identity())):
-            changed = sorted(k for k in stored if stored.get(k) != json.loads(json.dumps(settings.identity())).get(k))
+            self.study.set_user_attr("settings", self.s.identity())
+        elif stored != identity:
+            changed = sorted(k for k in stored if stored.get(k) != identity.get(k))
             raise ConfigError(self.out, "settings", ", ".join(changed),
                               "differ from the stored study's; give the same options to resume it, or another --out")
+        return self
 
     @staticmethod
     def _circle(jar) -> float:
@@ -143,9 +166,8 @@ class Study:
         text = families.jar_text(design, self.limits.radius * 1e3, jar.height * 1e3, jar.wall_material,
                                  f"{families.describe(design)} (design trial {number})", comment)
         path = path or self.jar_path(number)
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(text)
-        tmp.replace(path)
+        with whole_file(path, "jar file") as part:
+            part.write_text(text)
         return path
 
     def check(self, number: int, params: dict) -> tuple[Path, list[str]]:
@@ -282,7 +304,47 @@ def evaluate_references(study: Study, names: list[str], ratios: list[float], pro
     for (name, k), summaries in zip(cands, results):
         figs = figures(summaries, study.s.objectives, study.s.floors)
         out.setdefault(name, {})[f"{k:.10g}"] = {key: [m, s, v] for key, (m, s, v) in figs.items()}
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps({"identity": identity, "references": out}, indent=1))
-    tmp.replace(path)
+    with whole_file(path, "references") as part:
+        part.write_text(json.dumps({"identity": identity, "references": out}, indent=1))
     return out
+
+
+def check_database(path: Path) -> None:
+    """Refuse a study database that is not a sound SQLite file of an Optuna study, in
+    one line that says how to recover. An empty file is SQLite's empty database (a
+    study killed while creating it): a new study. A hot journal beside it (a kill -9
+    mid-write) is rolled back by the check's own connection, as SQLite does."""
+    if not os.path.lexists(path):
+        return
+
+    def bad(why):
+        return damaged(path, why)
+
+    if path.is_dir():
+        raise bad("is a folder, not an SQLite file")
+    try:
+        with open(path, "rb") as f:
+            head = f.read(len(SQLITE_HEADER))
+    except OSError as err:
+        raise bad(f"unreadable ({err.strerror or err})") from None
+    if not head:
+        return
+    if head != SQLITE_HEADER:
+        raise bad("not an SQLite database (its first bytes are not SQLite's header)")
+    try:
+        with contextlib.closing(sqlite3.connect(f"file:{path.resolve()}?mode=rw", uri=True, timeout=30)) as db:
+            problems = [row[0] for row in db.execute("PRAGMA quick_check")]
+            tables = {name for (name,) in db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+    except sqlite3.Error as err:
+        raise bad(f"damaged ({err})") from None
+    if problems != ["ok"]:
+        raise bad(f"damaged ({one_line(problems[0])[:200]}{', …' if len(problems) > 1 else ''})")
+    if tables and "studies" not in tables:
+        raise bad("an SQLite database but not an Optuna study (no studies table)")
+
+
+def damaged(path: Path, why: str) -> StoreError:
+    """The one-line refusal of a damaged study database, saying how to recover."""
+    out = path.parent
+    return StoreError(path, "study database", f"{why}; move it away to start a new study, or restore it from a copy "
+                      f"(the designs already written are in {out / 'jars'} and {out / 'best'})")

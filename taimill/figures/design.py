@@ -18,14 +18,19 @@ def _unit(key: str) -> str:
 
 
 def _fmt(fig) -> str:
-    return f"{fig[0]:.4g} ± {fig[1]:.2g}"
+    return f"{fig[0]:.4g} ± {fig[1]:.2g}" if fig[1] is not None else f"{fig[0]:.4g} ± ?"
+
+
+def _s(fig) -> float:
+    """The spread for a band or error bar: none drawn where it is unknown (one replica)."""
+    return fig[1] if fig[1] is not None else 0.0
 
 
 def draw_report(res: dict, outlines: dict, radius_mm: float, path) -> Path:
     """Save the page to `path`. res: the study's results (objectives "KEY:max|min",
     best, references at their best K, reference_grid {name: {K: figures}}, history);
     outlines: {"design N" or reference name: (M, 2) outline in mm}; figures are
-    [mean, spread, replica values]."""
+    [mean, spread, replica values], the spread None for one replica (no band drawn)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -40,8 +45,10 @@ def draw_report(res: dict, outlines: dict, radius_mm: float, path) -> Path:
     cols = max(len(panels), 2)
     fig = plt.figure(figsize=(max(12, 2.4 * cols), 9), constrained_layout=True)
     grid = fig.add_gridspec(2, cols, height_ratios=[1, 1.5])
+    spread = ("1 replica: spread unknown (± ?), nothing compared" if res["spread"].startswith("unknown")
+              else "mean ± replicas' s.d.")
     fig.suptitle(f"Jar design ({res['family']} family): {', '.join(res['objectives'])}; {res['evaluated']} designs, "
-                 f"{res['pruned']} pruned; mean ± replicas' s.d.")
+                 f"{res['pruned']} pruned; {spread}")
     lim = 1.1 * radius_mm
     for i, (title, name, designed) in enumerate(panels):
         ax = fig.add_subplot(grid[0, i])
@@ -65,8 +72,10 @@ def draw_report(res: dict, outlines: dict, radius_mm: float, path) -> Path:
     ax.plot(n, running, color="k", label="best so far")
     for j, (name, ref) in enumerate(res["references"].items()):
         m, s, _ = ref["figures"][key]
-        ax.axhspan(m - s, m + s, color=f"C{j + 2}", alpha=0.2)
-        ax.axhline(m, color=f"C{j + 2}", lw=1, label=f"{name} (K {ref['ratio']:.3g}) ± s")
+        if s is not None:
+            ax.axhspan(m - s, m + s, color=f"C{j + 2}", alpha=0.2)
+        band = " ± s" if s is not None else ""
+        ax.axhline(m, color=f"C{j + 2}", lw=1, label=f"{name} (K {ref['ratio']:.3g}){band}")
     ax.set(xlabel="trial", ylabel=f"{key} ({_unit(key)})", title="objective history")
     ax.legend(fontsize=7)
     ax = fig.add_subplot(grid[1, half:])
@@ -75,7 +84,7 @@ def draw_report(res: dict, outlines: dict, radius_mm: float, path) -> Path:
         ax.scatter([h[a] for h in hist], [h[b] for h in hist], s=10, color="0.6", label="designs")
         front = sorted(res["best"], key=lambda r: r["figures"][a][0])
         ax.errorbar([r["figures"][a][0] for r in front], [r["figures"][b][0] for r in front],
-                    xerr=[r["figures"][a][1] for r in front], yerr=[r["figures"][b][1] for r in front],
+                    xerr=[_s(r["figures"][a]) for r in front], yerr=[_s(r["figures"][b]) for r in front],
                     color="tab:red", marker="o", label="Pareto front ± s")
         for j, (name, by_k) in enumerate(res["reference_grid"].items()):
             ax.scatter([f[a][0] for f in by_k.values()], [f[b][0] for f in by_k.values()], marker="s",
@@ -85,7 +94,7 @@ def draw_report(res: dict, outlines: dict, radius_mm: float, path) -> Path:
         ax.scatter([h["ratio"] for h in hist], y, s=10, color="tab:blue", label="designs")
         for j, (name, by_k) in enumerate(res["reference_grid"].items()):
             ks = sorted(by_k, key=float)
-            ax.errorbar([float(k) for k in ks], [by_k[k][key][0] for k in ks], yerr=[by_k[k][key][1] for k in ks],
+            ax.errorbar([float(k) for k in ks], [by_k[k][key][0] for k in ks], yerr=[_s(by_k[k][key]) for k in ks],
                         color=f"C{j + 2}", marker="s", ms=3, label=f"{name} ± s")
         ax.set(xlabel="K = ω/Ω + 1", ylabel=f"{key} ({_unit(key)})", title="objective against K")
     ax.legend(fontsize=7)

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import zarr
 
 from inprocess import main
 from taimill.errors import StoreError
@@ -191,6 +192,17 @@ def test_a_store_with_neither_spectra_nor_event_rows_refuses_in_one_line(stores,
     refused(path, "spectra: missing", "run it again")
 
 
+def test_spectra_over_no_time_are_refused_not_never(stores, tmp_path):
+    """A statistics-mode run killed before its analysis window: its spectra cover no
+    time. Before: `predict` divided by zero seconds."""
+    path = copy(stores, "spectra", tmp_path)
+    edit_attrs(path, drop=("summary", "analysis_window"), status="running")
+    edit_attrs(path / "spectra", end=1.0)
+    code, out, err = main("kinetics", "predict", FIT, path)
+    assert code == 2 and "never" not in out, (out, err)
+    assert "cover no time" in one_line(err) and "run it longer" in one_line(err)
+
+
 # ---------------------------------------------------------------- a store being written
 def test_a_journal_segment_deleted_between_listing_and_reading_is_not_damage(tmp_path, monkeypatch):
     """The race, made deterministic: the writer folds the journal into the arrays and
@@ -257,3 +269,38 @@ def test_a_store_read_while_taimill_run_writes_it_reads_whole_every_time(tmp_pat
     assert reads > 20 and events > 0
     store = open_run(out)
     assert store.status == "complete" and int(store.spectra.count.sum()) >= events
+
+
+def test_spectra_met_mid_rewrite_are_read_once_rewritten_and_a_killed_rewrite_stays_readable(tmp_path, monkeypatch):
+    """The other race, made deterministic: a reader meets the spectra while their
+    writer rewrites them (count of the new commit, fixed of the old: no events give
+    them). It reads them again once the writer is done; a writer killed mid-rewrite
+    leaves its generation odd, and the reader then takes them as they are."""
+    from taimill.model.spectra import Spectra
+    from taimill.store import run
+    from taimill.store.layout import CODECS
+    from taimill.store.spectra import Busy, SpectraWriter, read_spectra
+
+    def spectra(events: int) -> Spectra:
+        sp = Spectra(1.0, 2.0 + events, 0.01)
+        sp.count[0, 0, 0, 60] = events
+        sp.fixed[0, 0, 0, 60] = events * (1 << 24)
+        return sp
+
+    group = zarr.open_group(tmp_path / "s.zarr", mode="w")
+    writer = SpectraWriter(group, CODECS)
+    writer.write(spectra(3))
+    assert read_spectra(group, "s.zarr") == spectra(3)
+    half = zarr.open_group(tmp_path / "s.zarr", mode="r+")["spectra"]  # the writer, stopped mid-rewrite
+    half.attrs["generation"] = writer.generation + 1
+    half["count"][...] = spectra(5).count
+    with pytest.raises(Busy):
+        read_spectra(group, "s.zarr")
+    store = run.RunStore(group)
+    monkeypatch.setattr(run.time, "sleep", lambda s: writer.write(spectra(5)))  # the writer goes on meanwhile
+    assert store._stored_spectra() == spectra(5)
+    half.attrs["generation"] = writer.generation + 1  # killed mid-rewrite: odd for good
+    half["count"][...] = spectra(7).count
+    monkeypatch.setattr(run.time, "sleep", lambda s: None)
+    got = store._stored_spectra()
+    assert int(got.count.sum()) == 7 and int(got.fixed.sum()) == 5 << 24

@@ -79,7 +79,7 @@ class SpectraWriter:
         for name, values in data.items():
             self.arrays[name][...] = values
         self.generation += 1
-        self.group.attrs.update(_window(sp) | {"generation": self.generation})
+        self.group.update_attributes(_window(sp) | {"generation": self.generation})  # one write: window and generation
 
     def _create(self, sp: Spectra, data: dict) -> None:
         self.generation = 1

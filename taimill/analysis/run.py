@@ -139,10 +139,7 @@ def analyse(run, *, analysis_start: float | None = None, min_un: float = STRESS_
     if rows_kept:  # the spectra of this window, binned from the rows as the kernel bins them
         summary.spectra(from_rows(events, t0, t_end, min_un))
     else:
-        sp = store.spectra
-        if sp is None:
-            raise StoreError(store.where, "spectra", "missing: the run kept no event rows (outputs.events = \"spectra\") "
-                             "and its spectra were never committed")
+        sp = store.spectra  # StoreError if missing or damaged, never zeros
         if t0 != sp.start or min_un != sp.stress_un:
             raise ConfigError(source, "--analysis-start" if t0 != sp.start else "--min-un", t0 if t0 != sp.start else min_un,
                               f"this run kept only its events' spectra (outputs.events = \"spectra\"), from {sp.start:g} s "

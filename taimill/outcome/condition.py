@@ -154,9 +154,10 @@ def open_condition(text: str, base: str = ".", source: str = "command line", key
         raise ConfigError(source, key, text, f"cannot be read ({err})") from None
     if not isinstance(run.config, dict) or not run.config:
         raise ConfigError(source, key, text, "cannot be read: not a taimill run store (no config attribute)")
-    spectra = getattr(run, "spectra", None)
-    if spectra is None:
-        raise ConfigError(source, key, text, "the run store holds no energy spectra (runs of an older taimill)")
+    spectra = run.spectra  # StoreError names what is missing or damaged
+    if not spectra.seconds > 0:  # rates over no time: the run stopped before its analysis window
+        raise ConfigError(source, key, text, f"its energy spectra cover no time (window {spectra.start:g} to "
+                          f"{spectra.end:g} s: the run stopped before its analysis window began); run it longer")
     grams = 1e3 * float(((run.config or {}).get("powder") or {}).get("mass") or math.nan)
     if not grams > 0:
         raise ConfigError(source, key, text, "the run has no powder: give [powder] mass_g or ball_to_powder in its "

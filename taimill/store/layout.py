@@ -9,8 +9,8 @@ One run group:
     events/      one 1-D array per `EVENT_COLUMNS` entry
     energy/      one 1-D array per `ENERGY_COLUMNS` entry
     spectra/     the events' energy spectra over the analysis window (store/spectra.py),
-                 written when the run ends, and at every commit by a run that stores
-                 no event rows (config events_output = "spectra")
+                 written when the run ends, and rewritten in place at every commit
+                 by a run that stores no event rows (config events_output = "spectra")
     journal/     while the writer runs: NNNNNNNN.npz, the rows committed since the last
                  whole chunk of each table
 

@@ -4,10 +4,14 @@ store whose writer finished, chunks missing below `n_valid`, a chunk or journal 
 that does not decode, a chunk that fails its CRC-32C (`layout.CHECKSUM`), tables that
 disagree with the summary, or arrays that contradict the stored config (ball count,
 radii, frame count) raise `StoreError` naming the store and the part, instead of
-reading as fill values or as a complete run. A journal left in a store whose writer
-finished is named in a warning and not read. The writer (taimill.store.writer) says
-how a store stays readable after a kill: readers slice each table to its `n_valid`
-and append the journal's rows.
+reading as fill values or as a complete run; so do a missing or damaged part of the
+spectra when they are read (`RunStore.spectra`, store.spectra.read_spectra), and a
+finished store whose writer stored spectra but has none. A journal left in a store
+whose writer finished is named in a warning and not read. The writer
+(taimill.store.writer) says how a store stays readable after a kill: readers slice
+each table to its `n_valid` and append the journal's rows. A store read while its
+writer commits is read again when the writer changed it under the reader (a journal
+segment folded into the arrays and deleted, spectra rewritten).
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import io
 import math
 import os
 import sys
+import time
 from functools import cached_property
 
 import numpy as np
@@ -26,10 +31,10 @@ from zarr.core.sync import sync
 from taimill.errors import StoreError
 from taimill.model import rules
 from taimill.model.mechanisms import STRESS_MIN_UN
-from taimill.model.spectra import from_rows
+from taimill.model.spectra import MEASURES, from_rows
 from taimill.store.chunks import _chunk_key, location, read_rows, why
 from taimill.store.layout import ADDED_IN_2, FLUSHED, JOURNAL, SCHEMA_VERSION, Column, layout
-from taimill.store.spectra import GROUP as SPECTRA, read_spectra
+from taimill.store.spectra import GROUP as SPECTRA, Busy, read_spectra
 
 def committed_rows(group: zarr.Group, table: str) -> int:
     """Committed row count of a table: its `n_valid` and the journal's rows after them;
@@ -52,6 +57,20 @@ def _stored_keys(store, prefix: str) -> set[str]:
         return {k async for k in store.list_prefix(prefix)}
 
     return sync(collect())
+
+
+# Reads of a store whose writer changed it meanwhile (a journal segment folded into the
+# arrays and deleted after it was listed, spectra rewritten while read): tries, and the
+# seconds waited before each retry, so that a writer's commit (milliseconds) ends.
+READ_TRIES = (0.0, 0.005, 0.02, 0.05, 0.1, 0.2)
+# The spectra a writer rewrites in place (store.spectra): read again every SPECTRA_WAIT
+# s until read whole; read as they are once their generation stayed odd STALLED_SECONDS
+# (a writer killed while rewriting), or after SPECTRA_PATIENCE s.
+SPECTRA_WAIT, STALLED_SECONDS, SPECTRA_PATIENCE = 0.005, 0.2, 5.0
+
+
+class _Moved(Exception):
+    """The writer of a live store changed what `check` was reading: read it again."""
 
 
 _ATTR_TYPES = {"schema_version": int, "n_balls": int, "status": str, "config": dict, "summary": dict,
@@ -81,7 +100,24 @@ class RunStore:
         """Raise StoreError for what would otherwise read wrongly (module doc): attributes
         of the wrong type; a table or array missing from a store whose writer finished;
         n_valid beyond the arrays; chunks missing below n_valid; tables that disagree with
-        the summary of a writer that flushed everything."""
+        the summary of a writer that flushed everything. A store whose writer folded a
+        journal segment into the arrays while it was read is read again, from its
+        attributes on; after the last try the rows past the change are left out."""
+        for i, wait in enumerate(READ_TRIES):
+            try:
+                return self._check(settled=i == len(READ_TRIES) - 1)
+            except _Moved:
+                time.sleep(wait)
+                self._reopen()
+        raise AssertionError("unreachable: the last try is settled")
+
+    def _reopen(self) -> None:
+        """Forget what was read: the group's attributes as they are now."""
+        self.group = zarr.open_group(self.group.store, path=self.group.path, mode="r")
+        self.attrs = self.group.attrs.asdict()
+        self.n_valid, self.rows, self.columns, self.journal_rows, self.warnings = {}, {}, {}, {}, []
+
+    def _check(self, settled: bool) -> "RunStore":
         for key, kind in _ATTR_TYPES.items():
             v = self.attrs.get(key)
             if v is not None and (not isinstance(v, kind) or isinstance(v, bool)):
@@ -104,8 +140,10 @@ class RunStore:
         finished = self.summary is not None and not str(self.status).startswith("failed")
         for table, columns in layout(self.n_balls).items():
             self._check_table(table, columns, finished)
+        if finished and self.spectra_kept and SPECTRA not in self.group:
+            self._bad(SPECTRA, "missing (its writer finished, so it was there)")
         self.rows = dict(self.n_valid)
-        self._fold_journal(stale=str(self.status).startswith(FLUSHED) and self.summary is not None)
+        self._fold_journal(stale=str(self.status).startswith(FLUSHED) and self.summary is not None, settled=settled)
         if not finished and not self.attrs.get("energy_source"):
             self._cut_to_whole_frames()
         self._check_summary()
@@ -168,10 +206,11 @@ class RunStore:
                 left -= m
             self.journal_rows[table] = kept
 
-    def _fold_journal(self, stale: bool = False) -> None:
+    def _fold_journal(self, stale: bool = False, settled: bool = True) -> None:
         """Rows of the journal segments that continue each table after its n_valid
-        (module doc); a segment past a gap (a writer's deleted segment seen by a
-        reader of a live store) and everything after it are left out. `stale`: the
+        (module doc). A segment gone when read, or past a gap, was folded into the
+        arrays and deleted by the writer after this reader read n_valid: `_Moved`,
+        unless `settled` (then it and every row after it are left out). `stale`: the
         writer flushed every row into the arrays and deleted its journal, so a segment
         still there is a leftover (a copy over the store, a failed delete): not read,
         and named in a warning line on stderr, as reading on silently would hide it."""
@@ -189,6 +228,15 @@ class RunStore:
             part = key[len(self.group.path):].lstrip("/")
             try:
                 raw = sync(self.group.store.get(key, prototype=default_buffer_prototype()))
+            except FileNotFoundError:
+                raw = None
+            except Exception as err:
+                self._bad(part, f"unreadable ({why(err)})")
+            if raw is None:  # listed, then deleted: its rows reached the arrays
+                if not settled:
+                    raise _Moved
+                continue
+            try:
                 with np.load(io.BytesIO(raw.to_bytes()), allow_pickle=False) as z:
                     segment = {name: z[name] for name in z.files}
             except Exception as err:
@@ -207,6 +255,8 @@ class RunStore:
                 if any(len(v) != m for v in cols.values()):
                     self._bad(part, f"{table}: columns differ in length")
                 n = self.rows[table]
+                if start > n and not settled:
+                    raise _Moved
                 if start > n or start + m <= n:
                     continue  # past a gap, or rows the arrays hold already
                 self.journal_rows[table].append({k: v[n - start:] for k, v in cols.items()})
@@ -262,8 +312,7 @@ class RunStore:
         if s is None or not status.startswith(FLUSHED):
             return
         total = s.get("events_total")
-        rows_kept = (self.config or {}).get("events_output", "rows") == "rows"  # else the spectra only
-        if rows_kept and isinstance(total, int) and total != self.rows["events"]:
+        if self.rows_kept and isinstance(total, int) and total != self.rows["events"]:
             self._bad("events", f"{self.rows['events']} committed rows, but the summary counts {total} events")
         # a store whose writer had no ledger to write says why in `energy_source` (an
         # import from another DEM code): its empty energy table is not damage
@@ -320,21 +369,70 @@ class RunStore:
         plate_angle, jar_angle (rad), plate_speed, jar_spin (rad/s)."""
         return self._table("trajectory")
 
+    @property
+    def rows_kept(self) -> bool:
+        """The run kept one row per event (else only their spectra: outputs.events)."""
+        return (self.config or {}).get("events_output", "rows") == "rows"
+
+    @property
+    def spectra_kept(self) -> bool:
+        """The writer stores the spectra group: a run that keeps no event rows at every
+        commit, any run of a taimill with spectra when it finishes (its summary has them)."""
+        return not self.rows_kept or "spectra" in (self.summary or {})
+
     @cached_property
     def spectra(self):
-        """The run's energy spectra (taimill.model.spectra.Spectra): the stored group
-        (written when the run ends), else binned from the event rows over the analysis
-        window (a run killed before its end), else None."""
-        try:
-            stored = read_spectra(self.group)
-        except (KeyError, ValueError, TypeError) as err:
-            self._bad(SPECTRA, f"unreadable ({err})")
+        """The run's energy spectra (taimill.model.spectra.Spectra): the stored group,
+        checked (`store.spectra.read_spectra`: StoreError names a missing or damaged
+        part), else binned from the event rows over the analysis window (a store of a
+        taimill before spectra, or of a run killed before it wrote them). A run that
+        kept neither raises StoreError saying so."""
+        if not self.rows:
+            self.check()
+        stored = self._stored_spectra()
         if stored is not None:
+            self._check_spectra(stored)
             return stored
+        if not self.rows_kept:
+            self._bad(SPECTRA, "missing: the run keeps no event rows (outputs.events = \"spectra\") and committed no "
+                               "spectra (stopped before its first commit), so there is nothing to bin them from; "
+                               "run it again with this version of taimill")
         if "events" not in self.group:
-            return None
-        start = float((self.analysis_window or [(self.config or {}).get("analysis_start", 0.0)])[0])
-        return from_rows(self.events, start, math.inf, STRESS_MIN_UN)
+            self._bad(SPECTRA, "missing, and no event rows to bin them from (a run stopped before its first commit): "
+                               "run it again with this version of taimill")
+        window = self.analysis_window
+        start = float(window[0]) if window else float((self.config or {}).get("analysis_start", 0.0))
+        frames = self.column("trajectory", "time") if self.rows.get("trajectory") else np.zeros(0)
+        end = float(window[1]) if window else float(frames[-1]) if len(frames) else start
+        return from_rows(self.events, start, max(start, end), STRESS_MIN_UN)
+
+    def _stored_spectra(self):
+        """read_spectra, again while its writer rewrites them (a commit: milliseconds),
+        then as they are: a generation left odd that long is a writer killed while
+        rewriting; one that kept changing for SPECTRA_PATIENCE s, a writer committing
+        faster than they are read."""
+        last, stalled, deadline = None, 0.0, time.monotonic() + SPECTRA_PATIENCE
+        while True:
+            settled = stalled >= STALLED_SECONDS or time.monotonic() > deadline
+            try:
+                return read_spectra(self.group, self.where, settled=settled)
+            except Busy as busy:
+                stalled = stalled + SPECTRA_WAIT if busy.generation == last else 0.0
+                last = busy.generation
+                time.sleep(SPECTRA_WAIT)
+
+    def _check_spectra(self, sp) -> None:
+        """The stored spectra against the summary of a writer that finished: its stress
+        events per measure (a store written before every spectra chunk was stored reads
+        a chunk missing in every array as zero events)."""
+        said = (self.summary or {}).get("spectra") if str(self.status).startswith(FLUSHED) else None
+        if not isinstance(said, dict):
+            return
+        for q, measure in enumerate(MEASURES):
+            n = (said.get(measure) or {}).get("events") if isinstance(said.get(measure), dict) else None
+            got = int(sp.count[:, 0, q].sum())
+            if isinstance(n, int) and n != got:
+                self._bad(f"{SPECTRA}/count", f"{got} stress events ({measure}), but the summary counts {n}")
 
     @cached_property
     def events(self) -> dict[str, np.ndarray]:

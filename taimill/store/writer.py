@@ -18,7 +18,9 @@ Appending a sub-chunk block to each of the 47 arrays instead would cost a resize
 chunk rewrite per array, ≈ 0.2 s per commit, as long as the launch itself (zarr's cost
 per call); the journal costs ≈ 4 ms. Segments whose rows all reached the arrays are
 deleted, the journal when the writer finishes. A SIGKILL at any moment thus leaves a
-readable store missing at most the launch under way. (Tables commit one by one: a
+readable store missing at most the launch under way. A run that keeps no event rows
+also rewrites its spectra at every commit, in place and between two updates of their
+`generation`, so that a reader never meets them half-written (store.spectra). (Tables commit one by one: a
 writer killed between a launch's frame chunk and its ledger chunk leaves the
 trajectory a launch ahead, and readers take the frames both tables hold:
 `RunStore._cut_to_whole_frames`.) A write the operating system
@@ -40,7 +42,7 @@ from taimill.schema import VELOCITY_CONVENTION
 from taimill.store.chunks import _TableWriter, location, put_npz
 from taimill.store.layout import (CODECS, JOURNAL, JOURNAL_DESCRIPTION, SCHEMA_VERSION, expected_frames,
                                   frame_chunk_rows, layout, plain)
-from taimill.store.spectra import GROUP as SPECTRA, write_spectra
+from taimill.store.spectra import GROUP as SPECTRA, SpectraWriter
 
 FRAME_CHUNK_BYTES = 16 << 20  # trajectory chunks hold at most this many bytes per array (≥ 1 frame)
 # A mill whose frame is larger than this per array (above ≈ 44 000 balls) gets one frame
@@ -84,6 +86,7 @@ class ZarrSink:
         self.segments: list[tuple[str, dict[str, int]]] = []  #: journal keys and their end row per table
         self.seq = 0
         self.last_spectra = None
+        self.spectra_out: SpectraWriter | None = None  #: made by `start`
         self.event_rows = 0  #: event rows received: none, and the spectra are committed with the tables
 
     @contextmanager
@@ -126,8 +129,10 @@ class ZarrSink:
                 self.tables[name] = _TableWriter(self.group, name, columns, chunks[name], rows[name])
         self.journaled = {name: 0 for name in self.tables}
         with self._writing(JOURNAL):
-            if JOURNAL in self.group:  # a group reused for a new run
-                del self.group[JOURNAL]
+            for old in (JOURNAL, SPECTRA):  # a group reused for a new run
+                if old in self.group:
+                    del self.group[old]
+        self.spectra_out = SpectraWriter(self.group, CODECS)
 
     def _add(self, table: str, block: dict) -> None:
         with self._writing(table):
@@ -157,7 +162,7 @@ class ZarrSink:
         yet in whole chunks of the arrays go to one journal segment (module doc)."""
         if self.last_spectra is not None and self.event_rows == 0:  # a run storing spectra only
             with self._writing(SPECTRA):
-                write_spectra(self.group, self.last_spectra, CODECS)
+                self.spectra_out.write(self.last_spectra)
         starts = {name: max(self.journaled[name], t.committed) for name, t in self.tables.items()}
         tails = {name: t.tail(starts[name]) for name, t in self.tables.items()}
         ends = {name: starts[name] + len(next(iter(rows.values()))) for name, rows in tails.items()}
@@ -215,7 +220,7 @@ class ZarrSink:
                 self.flush()
                 if self.last_spectra is not None:
                     with self._writing(SPECTRA):
-                        write_spectra(self.group, self.last_spectra, CODECS)
+                        self.spectra_out.write(self.last_spectra)
                 attrs = {"summary": plain(summary, "summary"), "status": status}
                 if "analysis_window" in summary:
                     attrs["analysis_window"] = plain(summary["analysis_window"], "analysis_window")

@@ -5,7 +5,13 @@ example data are such files, docs/outcome.md).
 
 Condition file (JSON): {"format": "taimill-condition", "version": 1, "note": text,
 "powder_g": g, "start": s, "end": s, "stress_un": m/s, "cells": [[kind, class,
-measure, bin, count, fixed], …]}: the non-zero cells of Spectra.count and .fixed.
+measure, bin, count, fixed], …]}: the non-zero cells of Spectra.count and .fixed;
+optionally "shear_w_per_g": the friction power per gram of powder of the whole charge.
+
+The spectra count events, contacts that open and close; the friction of contacts that
+never close in the window (a bed sliding on the wall: all of a friction-led charge's
+power) is in no spectrum. `shear_w_per_g` carries it, from the run summary (its
+`specific_power_shear_W_per_g`): the attrition route of the size model needs it.
 """
 
 from __future__ import annotations
@@ -37,6 +43,7 @@ class Condition:
     name: str
     spectra: Spectra
     powder_g: float
+    shear_w_per_g: float = math.nan  #: W/g, friction power of the whole charge (module doc); nan: unknown
     _curves: dict = field(default_factory=dict, compare=False, repr=False)
 
     def _curve(self, measure: str, stress_only: bool, energy: bool) -> np.ndarray:
@@ -76,12 +83,14 @@ def check_measure(measure: str, source: str = "command line", key: str = "--meas
     return measure
 
 
-def write_file(path, spectra: Spectra, powder_g: float, note: str) -> None:
+def write_file(path, spectra: Spectra, powder_g: float, note: str, shear_w_per_g: float = math.nan) -> None:
     """Write a condition file (module doc)."""
     cells = [[*map(int, idx), int(spectra.count[idx]), int(spectra.fixed[idx])]
              for idx in zip(*np.nonzero(spectra.count | spectra.fixed))]
     doc = {"format": FORMAT, "version": VERSION, "note": note, "powder_g": powder_g, "start": spectra.start,
            "end": spectra.end, "stress_un": spectra.stress_un, "cells": cells}
+    if math.isfinite(shear_w_per_g):
+        doc["shear_w_per_g"] = shear_w_per_g
     with open(path, "w") as f:
         json.dump(doc, f, indent=None, separators=(",", ":"))
         f.write("\n")
@@ -119,7 +128,11 @@ def read_file(path, name: str | None = None, source: str | None = None, key: str
     except (ValueError, IndexError, TypeError):
         raise ConfigError(str(path), "cells", "…", f"must be [kind, class, measure, bin, count, fixed] rows "
                           f"within {SHAPE}") from None
-    return Condition(name or str(path), sp, float(doc["powder_g"]))
+    shear = doc.get("shear_w_per_g", math.nan)
+    if "shear_w_per_g" in doc and (not isinstance(shear, (int, float)) or isinstance(shear, bool)
+                                   or not math.isfinite(shear) or shear < 0):
+        raise ConfigError(str(path), "shear_w_per_g", shear, "a number ≥ 0 (W/g), or leave the key out")
+    return Condition(name or str(path), sp, float(doc["powder_g"]), float(shear))
 
 
 def open_condition(text: str, base: str = ".", source: str = "command line", key: str = "condition") -> Condition:
@@ -162,4 +175,6 @@ def open_condition(text: str, base: str = ".", source: str = "command line", key
     if not grams > 0:
         raise ConfigError(source, key, text, "the run has no powder: give [powder] mass_g or ball_to_powder in its "
                           "preset (or --powder-mass) and run it again")
-    return Condition(text, spectra, grams)
+    summary = getattr(run, "summary", None) or {}
+    shear = summary.get("specific_power_shear_W_per_g", math.nan)
+    return Condition(text, spectra, grams, float(shear) if isinstance(shear, (int, float)) else math.nan)

@@ -170,10 +170,15 @@ def event_bins(cond: Condition, measure: str, stress_only: bool) -> tuple[np.nda
     return count / sp.seconds / cond.powder_g, mean
 
 
-def friction_power_per_g(cond: Condition, stress_only: bool = False) -> float:
-    """W/g: the energy friction dissipates in the condition's events per second and gram
-    (every contact by default: persistent and sliding contacts carry it)."""
-    rate, mean = event_bins(cond, "dissipated_friction", stress_only)
+def friction_power_per_g(cond: Condition) -> float:
+    """W/g: the power friction dissipates per gram of powder in the whole charge (the
+    condition's `shear_w_per_g`, from the run summary). A condition without it (a
+    condition file written without the key) falls back to the friction of its spectra's
+    events, which leaves out contacts that never closed in the window: a sliding bed's
+    friction, all of a friction-led charge's power, is in no spectrum."""
+    if math.isfinite(cond.shear_w_per_g):
+        return float(cond.shear_w_per_g)
+    rate, mean = event_bins(cond, "dissipated_friction", False)
     return float(np.sum(rate * mean))
 
 

@@ -170,3 +170,24 @@ def test_sizes_predict_grinds_finer_with_time_and_finds_the_time_to_a_target(tmp
     before, after = (quantile_size(classes, passing(classes, grind(g, classes, cond, m0, [f * t])), 0.9)[0]
                      for f in (0.99, 1.01))
     assert before > 20e-6 >= after
+
+
+def test_a_sliding_bed_without_events_grinds_by_the_friction_of_its_whole_charge(tmp_path):
+    # a friction-led charge: no event closes in the window, all its power is the friction
+    # of persistent contacts, which the run summary carries (shear_w_per_g) and no spectrum
+    from taimill.outcome.condition import write_file
+
+    empty = from_rows({k: np.zeros(0) for k in ("t_start", "kind", "un", "ut", "m_eff", "dissipated_normal",
+                                                "dissipated_friction")}, 4.0, 24.0, 0.01)
+    bed = Condition("bed", empty, 2.1, shear_w_per_g=0.83)
+    g = Grinding(AUSTIN, capture_g=1e-3, f_mat=0.5, xw_min=0.05, k_att=1e-4)
+    s = selection(g, CLASSES, bed)
+    assert not s["impact"].any() and s["attrition"][:-1] == pytest.approx(1e-4 * 0.83, rel=1e-15)
+    m = grind(g, CLASSES, bed, feed(CLASSES, 20e-6), [0.0, 8 * HOUR])
+    x50 = quantile_size(CLASSES, passing(CLASSES, m), 0.5)
+    assert x50[1] < x50[0] / 2  # finer by friction alone
+    write_file(tmp_path / "bed.json", empty, 2.1, "SYNTHETIC sliding bed", shear_w_per_g=0.83)
+    assert read_file(tmp_path / "bed.json").shear_w_per_g == 0.83
+    write_file(tmp_path / "old.json", empty, 2.1, "SYNTHETIC without the key")
+    assert math.isnan(read_file(tmp_path / "old.json").shear_w_per_g)
+    assert friction_power_per_g(read_file(tmp_path / "old.json")) == 0.0  # the spectra's events alone: none here

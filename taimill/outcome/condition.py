@@ -29,6 +29,12 @@ def _log(energy):
         return np.log10(np.maximum(energy, 0.0))
 
 
+def _above(per_bin) -> np.ndarray:
+    """Per bin edge (KNOTS), the sum of `per_bin` over the bins at or above it."""
+    per_bin = np.asarray(per_bin, dtype=float)
+    return np.maximum(np.concatenate([[per_bin.sum()], per_bin.sum() - np.cumsum(per_bin)]), 0.0)
+
+
 @dataclass(frozen=True)
 class Condition:
     """One jar's spectra over its window and its powder (g). `stress_only`: count only
@@ -47,9 +53,7 @@ class Condition:
         key = (measure, stress_only, energy)
         if key not in self._curves:
             count, joules = selected(self.spectra, measure, stress_only=stress_only)
-            per_bin = joules if energy else count
-            above = np.maximum(np.concatenate([[per_bin.sum()], per_bin.sum() - np.cumsum(per_bin)]), 0.0)
-            self._curves[key] = above / self.spectra.seconds / self.powder_g
+            self._curves[key] = _above(joules if energy else count) / self.spectra.seconds / self.powder_g
         return self._curves[key]
 
     def rate(self, energy, measure: str, stress_only: bool = False):
@@ -59,6 +63,22 @@ class Condition:
     def power(self, energy, measure: str, stress_only: bool = False):
         """W/g: the `measure` energy per second and gram in events with `measure` ≥ `energy` J."""
         return np.interp(_log(energy), KNOTS, self._curve(measure, stress_only, True))
+
+    def counting_error(self, energy, measure: str, stress_only: bool = False, weighted: bool = False) -> float:
+        """The relative standard error that counting alone gives the rate (or, weighted,
+        the power) above `energy` J: the window holds a finite number of events, a
+        Poisson count N (1/√N; the power: √(Σ e²) / Σ e over the events, from each bin's
+        count and mean energy). A floor: collisions come in bursts, so the spread
+        between seeds is larger. No event above the energy: as if one were there."""
+        count, joules = selected(self.spectra, measure, stress_only=stress_only)
+        count, joules = np.asarray(count, dtype=float), np.asarray(joules, dtype=float)
+        per_bin = np.divide(joules ** 2, count, out=np.zeros_like(joules), where=count > 0) if weighted else count
+        total = joules if weighted else count
+        x = _log(energy)
+        above = np.interp(x, KNOTS, _above(per_bin)), np.interp(x, KNOTS, _above(total))
+        if not above[1] > 0:
+            return 1.0
+        return float(math.sqrt(above[0]) / above[1]) if weighted else float(1.0 / math.sqrt(max(above[0], 1.0)))
 
     def energy_range(self, measure: str, stress_only: bool = False) -> tuple[float, float]:
         """J: the lower edge of the lowest and the upper edge of the highest occupied

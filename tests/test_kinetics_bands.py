@@ -16,13 +16,14 @@ import subprocess
 import sys
 import tomllib
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from scipy import optimize, stats
 
 from taimill.outcome import fit as fitting, predict
-from taimill.outcome.condition import write_file
+from taimill.outcome.condition import Condition, write_file
 from taimill.outcome.files import read_points
 from taimill.outcome.models import CriticalCollisions
 
@@ -211,3 +212,43 @@ def test_a_damaged_profile_in_a_fit_file_is_one_line(tmp_path):
     res = taimill("kinetics", "predict", "bad.toml", "A.json", cwd=tmp_path)
     assert res.returncode == 2 and res.stdout == "", res.stderr
     assert res.stderr.count("\n") == 1 and "bad.toml: profiles.kappa_g" in res.stderr, res.stderr
+
+
+def sweep_store(path: Path, points: list[tuple[dict, Condition]]) -> Path:
+    """A finished sweep store of the given (values, condition) points: each a run
+    holding only a config and the condition's spectra (no simulation)."""
+    from taimill.store.sweep import SweepStore
+
+    store = SweepStore.create(path, {"preset": "synthetic"})
+    config = {"balls": {"count": 2, "radius": 0.005}, "duration": 1.0, "dt": 1e-5, "trajectory_rate": 0,
+              "powder": {"mass": 0.005, "ball_to_powder": 10.0}}
+    for i, (values, cond) in enumerate(points):
+        store.add_points([{"overrides": {"seed": values["seed"], "jar": values["jar"]}, "values": values}])
+        store.write_point(SimpleNamespace(index=i, config=config, n_balls=2, radii=np.full(2, 0.005), tables=None,
+                                          spectra=cond.spectra, summary={"dissipated_power": 3.5}, status="complete"))
+    return path
+
+
+def test_replicas_of_a_sweep_point_widen_the_band_by_their_spread(tmp_path):
+    """Three replicas (seeds) of one condition whose rates differ by ±15 %, far more than
+    counting allows: the band of each point is at least ±q times their spread; a point
+    without replicas keeps the counting error."""
+    reps = [condition(f"r{k}", 4e-3, 0.45, rate) for k, rate in enumerate((1000.0, 1150.0, 850.0))]
+    points = [({"jar": "j", "seed": k, "replica": k}, c) for k, c in enumerate(reps)]
+    points.append(({"jar": "other", "seed": 0, "replica": 0}, C))
+    sweep_store(tmp_path / "s.zarr", points)
+    for c in (A, B):
+        write_file(tmp_path / f"{c.name}.json", c.spectra, c.powder_g, "SYNTHETIC test condition")
+    write_points(tmp_path / "p.csv", measured(MODEL, TRUTH, (A, B), 0, sigma=0.003))
+    assert taimill("kinetics", "fit", "p.csv", "--out", "fit.toml", cwd=tmp_path).returncode == 0
+    res = taimill("kinetics", "predict", "fit.toml", "s.zarr", "--json", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    rows = {r["condition"]: r for r in json.loads(res.stdout)["conditions"]}
+    assert len(rows) == 4
+    q = stats.norm.ppf(0.975)
+    for k in range(3):
+        r = rows[f"s.zarr#{k}"]
+        assert r["scatter_from"] == "3 replicas" and r["scatter"] == pytest.approx(0.15, rel=1e-3)
+        t = r["time_to_target_s"]
+        assert r["upper_s"] >= t / (1 - q * 0.15) and r["lower_s"] <= t / (1 + q * 0.15), r
+    assert rows["s.zarr#3"]["scatter_from"] == "counting" and rows["s.zarr#3"]["scatter"] < 0.02

@@ -276,8 +276,9 @@ def cmd_predict(a) -> int:
     rows = []
     for name, cond in conds.items():
         t, lo, hi = predict.time_to(fit, cond, target)
+        spread, origin = predict.scatter(fit, cond)
         rows.append({"condition": name, "time_to_target_s": t, "lower_s": lo, "upper_s": hi,
-                     "never_in_band": not math.isfinite(hi), "counting_error": predict.counting_error(fit, cond)})
+                     "never_in_band": not math.isfinite(hi), "scatter": spread, "scatter_from": origin})
     if a.rank:
         rows.sort(key=lambda r: (not math.isfinite(r["time_to_target_s"]), r["time_to_target_s"]))
     longest = max((r["time_to_target_s"] for r in rows if math.isfinite(r["time_to_target_s"])), default=3600.0)

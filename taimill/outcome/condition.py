@@ -38,12 +38,15 @@ def _above(per_bin) -> np.ndarray:
 @dataclass(frozen=True)
 class Condition:
     """One jar's spectra over its window and its powder (g). `stress_only`: count only
-    stress events (onset u̇n ≥ the spectra's threshold) instead of every contact."""
+    stress events (onset u̇n ≥ the spectra's threshold) instead of every contact.
+    `replicas`: the spectra of runs of the same condition with other seeds (a sweep's
+    replicas), for the spread of the rate between seeds."""
 
     name: str
     spectra: Spectra
     powder_g: float
     _curves: dict = field(default_factory=dict, compare=False, repr=False)
+    replicas: tuple = field(default=(), compare=False, repr=False)
 
     def _curve(self, measure: str, stress_only: bool, energy: bool) -> np.ndarray:
         """Per bin edge (KNOTS), the events (or their J) at or above it per second and
@@ -79,6 +82,17 @@ class Condition:
         if not above[1] > 0:
             return 1.0
         return float(math.sqrt(above[0]) / above[1]) if weighted else float(1.0 / math.sqrt(max(above[0], 1.0)))
+
+    def replica_spread(self, energy, measure: str, stress_only: bool = False, weighted: bool = False) -> float:
+        """The relative standard deviation of the rate (weighted: the power) above
+        `energy` J between this run and its replicas (NaN: no replicas). Measured, where
+        the counting error is a floor; from few replicas, itself uncertain."""
+        if not self.replicas:
+            return math.nan
+        runs = [self] + [Condition(self.name, sp, self.powder_g) for sp in self.replicas]
+        x = np.array([float(c.power(energy, measure, stress_only) if weighted else c.rate(energy, measure, stress_only))
+                      for c in runs])
+        return float(np.std(x, ddof=1) / np.mean(x)) if np.mean(x) > 0 else math.nan
 
     def energy_range(self, measure: str, stress_only: bool = False) -> tuple[float, float]:
         """J: the lower edge of the lowest and the upper edge of the highest occupied
@@ -181,4 +195,29 @@ def open_condition(text: str, base: str = ".", source: str = "command line", key
     if not grams > 0:
         raise ConfigError(source, key, text, "the run has no powder: give [powder] mass_g or ball_to_powder in its "
                           "preset (or --powder-mass) and run it again")
-    return Condition(text, spectra, grams)
+    return Condition(text, spectra, grams, replicas=tuple(_replicas(sweep, int(point))) if point else ())
+
+
+def _replicas(sweep, i: int) -> list:
+    """The spectra of the sweep's finished points that differ from point i only in
+    their seed (its replicas); a damaged one is left out."""
+    from taimill.errors import StoreError
+
+    def same(values: dict) -> dict:
+        return {k: v for k, v in values.items() if k not in ("seed", "replica")}
+
+    plan, out = sweep.plan, []
+    mine = same(plan[i].get("values", {}))
+    try:
+        done = sorted(sweep.done())
+    except StoreError:
+        return []
+    for j in done:
+        if j != i and same(plan[j].get("values", {})) == mine:
+            try:
+                spectra = sweep.spectra(j)
+            except StoreError:
+                continue
+            if spectra is not None:
+                out.append(spectra)
+    return out

@@ -24,8 +24,10 @@ the condition:
   zero-width one;
 - the simulation's own scatter: the condition's rate (or power) above the threshold
   comes from a finite window, a count with a relative standard error
-  (Condition.counting_error, the Poisson floor); ±q of it scales the condition's drive
-  at the best fit, added in quadrature to the parameters' half-widths (in log t).
+  (Condition.counting_error, the Poisson floor), or, for a sweep point with replicas
+  (points differing only in their seed), their relative standard deviation where that
+  is larger; ±q of it scales the condition's drive at the best fit, added in quadrature
+  to the parameters' half-widths (in log t).
 
 A fit file without profiles (an older taimill) gives the linearised band and the
 simulation's scatter; the command says so.
@@ -146,20 +148,37 @@ class Scaled:
         return self.cond.power(*args, **kw) * self.factor
 
 
+def _drive(fit: Fit) -> tuple:
+    """(threshold J, measure, stress_only, weighted) of the fit's drive at its best fit."""
+    model = model_of(fit)
+    name = next(p.name for p in model.params if p.threshold)
+    return {**fit.params, **fit.fixed}[name], model.measure, model.stress_only, model.drive == "power"
+
+
 def counting_error(fit: Fit, cond: Condition) -> float:
     """The relative standard error of the condition's drive (rate or power) above the
     fit's threshold, from the events its window holds."""
-    model = model_of(fit)
-    name = next(p.name for p in model.params if p.threshold)
-    threshold = {**fit.params, **fit.fixed}[name]
-    return cond.counting_error(threshold, model.measure, model.stress_only, weighted=model.drive == "power")
+    energy, measure, stress_only, weighted = _drive(fit)
+    return cond.counting_error(energy, measure, stress_only, weighted=weighted)
+
+
+def scatter(fit: Fit, cond: Condition) -> tuple[float, str]:
+    """(relative standard error, where from) of the condition's drive above the fit's
+    threshold: the spread between its replicas where it has some and it is the larger,
+    else the counting error."""
+    energy, measure, stress_only, weighted = _drive(fit)
+    counting = cond.counting_error(energy, measure, stress_only, weighted=weighted)
+    spread = cond.replica_spread(energy, measure, stress_only, weighted=weighted)
+    if spread > counting:
+        return spread, f"{len(cond.replicas) + 1} replicas"
+    return counting, "counting"
 
 
 def _scattered(fit: Fit, cond: Condition, f) -> tuple:
     """(lower, upper) of f(params, condition) at the best fit over the condition's drive
     ±q times its counting error."""
     z, _ = _coords(fit)
-    p, spread = _params(fit, z), quantile(fit) * counting_error(fit, cond)
+    p, spread = _params(fit, z), quantile(fit) * scatter(fit, cond)[0]
     a = np.asarray(f(p, Scaled(cond, max(1.0 - spread, 0.0))), dtype=float)
     b = np.asarray(f(p, Scaled(cond, 1.0 + spread)), dtype=float)
     return np.minimum(a, b), np.maximum(a, b)

@@ -276,7 +276,9 @@ def cmd_predict(a) -> int:
     rows = []
     for name, cond in conds.items():
         t, lo, hi = predict.time_to(fit, cond, target)
-        rows.append({"condition": name, "time_to_target_s": t, "lower_s": lo, "upper_s": hi})
+        spread, origin = predict.scatter(fit, cond)
+        rows.append({"condition": name, "time_to_target_s": t, "lower_s": lo, "upper_s": hi,
+                     "never_in_band": not math.isfinite(hi), "scatter": spread, "scatter_from": origin})
     if a.rank:
         rows.sort(key=lambda r: (not math.isfinite(r["time_to_target_s"]), r["time_to_target_s"]))
     longest = max((r["time_to_target_s"] for r in rows if math.isfinite(r["time_to_target_s"])), default=3600.0)
@@ -289,8 +291,12 @@ def cmd_predict(a) -> int:
         with Outputs() as outs:
             _predict_figure(_writing(outs, given, a.overwrite, inputs)["--figure"], fit, rows, measured, target, predict)
             _commit(outs)
+    warnings = fit.warnings + ([] if fit.profiles else [predict.LINEARISED])
+    for w in warnings:
+        print(f"taimill: warning: {a.fit}: {w}", file=sys.stderr)
     if a.json:
         print(json.dumps(plain({"model": fit.model, "measure": fit.measure, "target": target, "level": fit.level,
+                                "warnings": warnings, "band": "profile" if fit.profiles else "linearised",
                                 "conditions": [r | {"curve": {k: list(v) for k, v in r["curve"].items()}} for r in rows]})))
     else:
         print(predict_table(fit, rows, target))
@@ -303,12 +309,17 @@ def predict_table(fit, rows: list[dict], target: float) -> str:
              f"{'condition':<{w}}  {'time (s)':>10}  {'(min)':>8}  {'band (s)':>21}"]
     for r in rows:
         t = r["time_to_target_s"]
+        band = f"[{_seconds(r['lower_s'])}, {_seconds(r['upper_s'])}]"
         if math.isfinite(t):
-            lines.append(f"{r['condition']:<{w}}  {t:>10.4g}  {t / 60:>8.3g}  "
-                         f"{'[' + format(r['lower_s'], '.4g') + ', ' + format(r['upper_s'], '.4g') + ']':>21}")
+            lines.append(f"{r['condition']:<{w}}  {t:>10.4g}  {t / 60:>8.3g}  {band:>21}")
         else:
-            lines.append(f"{r['condition']:<{w}}  {'never':>10}")
+            lines.append(f"{r['condition']:<{w}}  {'never':>10}  {'':>8}  {band:>21}")
     return "\n".join(lines)
+
+
+def _seconds(v: float) -> str:
+    """A band's end: ∞ is "never" (the parameters the data allow include no conversion)."""
+    return "never" if v == math.inf else format(v, ".4g")
 
 
 def _measured(points_csv: str, fit) -> dict:

@@ -35,16 +35,25 @@ def _log(energy):
         return np.log10(np.maximum(energy, 0.0))
 
 
+def _above(per_bin) -> np.ndarray:
+    """Per bin edge (KNOTS), the sum of `per_bin` over the bins at or above it."""
+    per_bin = np.asarray(per_bin, dtype=float)
+    return np.maximum(np.concatenate([[per_bin.sum()], per_bin.sum() - np.cumsum(per_bin)]), 0.0)
+
+
 @dataclass(frozen=True)
 class Condition:
     """One jar's spectra over its window and its powder (g). `stress_only`: count only
-    stress events (onset u̇n ≥ the spectra's threshold) instead of every contact."""
+    stress events (onset u̇n ≥ the spectra's threshold) instead of every contact.
+    `replicas`: the spectra of runs of the same condition with other seeds (a sweep's
+    replicas), for the spread of the rate between seeds."""
 
     name: str
     spectra: Spectra
     powder_g: float
     shear_w_per_g: float = math.nan  #: W/g, friction power of the whole charge (module doc); nan: unknown
     _curves: dict = field(default_factory=dict, compare=False, repr=False)
+    replicas: tuple = field(default=(), compare=False, repr=False)
 
     def _curve(self, measure: str, stress_only: bool, energy: bool) -> np.ndarray:
         """Per bin edge (KNOTS), the events (or their J) at or above it per second and
@@ -54,9 +63,7 @@ class Condition:
         key = (measure, stress_only, energy)
         if key not in self._curves:
             count, joules = selected(self.spectra, measure, stress_only=stress_only)
-            per_bin = joules if energy else count
-            above = np.maximum(np.concatenate([[per_bin.sum()], per_bin.sum() - np.cumsum(per_bin)]), 0.0)
-            self._curves[key] = above / self.spectra.seconds / self.powder_g
+            self._curves[key] = _above(joules if energy else count) / self.spectra.seconds / self.powder_g
         return self._curves[key]
 
     def rate(self, energy, measure: str, stress_only: bool = False):
@@ -66,6 +73,33 @@ class Condition:
     def power(self, energy, measure: str, stress_only: bool = False):
         """W/g: the `measure` energy per second and gram in events with `measure` ≥ `energy` J."""
         return np.interp(_log(energy), KNOTS, self._curve(measure, stress_only, True))
+
+    def counting_error(self, energy, measure: str, stress_only: bool = False, weighted: bool = False) -> float:
+        """The relative standard error that counting alone gives the rate (or, weighted,
+        the power) above `energy` J: the window holds a finite number of events, a
+        Poisson count N (1/√N; the power: √(Σ e²) / Σ e over the events, from each bin's
+        count and mean energy). A floor: collisions come in bursts, so the spread
+        between seeds is larger. No event above the energy: as if one were there."""
+        count, joules = selected(self.spectra, measure, stress_only=stress_only)
+        count, joules = np.asarray(count, dtype=float), np.asarray(joules, dtype=float)
+        per_bin = np.divide(joules ** 2, count, out=np.zeros_like(joules), where=count > 0) if weighted else count
+        total = joules if weighted else count
+        x = _log(energy)
+        above = np.interp(x, KNOTS, _above(per_bin)), np.interp(x, KNOTS, _above(total))
+        if not above[1] > 0:
+            return 1.0
+        return float(math.sqrt(above[0]) / above[1]) if weighted else float(1.0 / math.sqrt(max(above[0], 1.0)))
+
+    def replica_spread(self, energy, measure: str, stress_only: bool = False, weighted: bool = False) -> float:
+        """The relative standard deviation of the rate (weighted: the power) above
+        `energy` J between this run and its replicas (NaN: no replicas). Measured, where
+        the counting error is a floor; from few replicas, itself uncertain."""
+        if not self.replicas:
+            return math.nan
+        runs = [self] + [Condition(self.name, sp, self.powder_g) for sp in self.replicas]
+        x = np.array([float(c.power(energy, measure, stress_only) if weighted else c.rate(energy, measure, stress_only))
+                      for c in runs])
+        return float(np.std(x, ddof=1) / np.mean(x)) if np.mean(x) > 0 else math.nan
 
     def energy_range(self, measure: str, stress_only: bool = False) -> tuple[float, float]:
         """J: the lower edge of the lowest and the upper edge of the highest occupied
@@ -177,4 +211,30 @@ def open_condition(text: str, base: str = ".", source: str = "command line", key
                           "preset (or --powder-mass) and run it again")
     summary = getattr(run, "summary", None) or {}
     shear = summary.get("specific_power_shear_W_per_g", math.nan)
-    return Condition(text, spectra, grams, float(shear) if isinstance(shear, (int, float)) else math.nan)
+    return Condition(text, spectra, grams, float(shear) if isinstance(shear, (int, float)) else math.nan,
+                     replicas=tuple(_replicas(sweep, int(point))) if point else ())
+
+
+def _replicas(sweep, i: int) -> list:
+    """The spectra of the sweep's finished points that differ from point i only in
+    their seed (its replicas); a damaged one is left out."""
+    from taimill.errors import StoreError
+
+    def same(values: dict) -> dict:
+        return {k: v for k, v in values.items() if k not in ("seed", "replica")}
+
+    plan, out = sweep.plan, []
+    mine = same(plan[i].get("values", {}))
+    try:
+        done = sorted(sweep.done())
+    except StoreError:
+        return []
+    for j in done:
+        if j != i and same(plan[j].get("values", {})) == mine:
+            try:
+                spectra = sweep.spectra(j)
+            except StoreError:
+                continue
+            if spectra is not None:
+                out.append(spectra)
+    return out

@@ -134,13 +134,14 @@ def write_fit(path, fit: Fit, header: str) -> None:
     top = {"model": fit.model, "measure": fit.measure, "stress_only": fit.stress_only, "level": fit.level,
            "interval_method": fit.interval_method, "sigma": fit.sigma, "conditions": fit.conditions,
            "warnings": fit.warnings, "open_ends": fit.open_ends, "covariance_names": fit.covariance_names,
-           "covariance": fit.covariance}
+           "covariance": fit.covariance, "flat_directions": fit.flat_directions}
     tables = {"parameters": fit.params, "intervals": {k: list(v) for k, v in fit.intervals.items()},
-              "fixed": fit.fixed, "goodness": fit.goodness, "correlation": fit.correlation}
+              "fixed": fit.fixed, "goodness": fit.goodness, "correlation": fit.correlation, "profiles": fit.profiles}
     lines = [f"# {h}" for h in header.splitlines()]
     if not lines or not lines[0].startswith(FIT_MARK):
         lines.insert(0, FIT_MARK)
-    lines.append("# covariance: of the fitted coordinates (log10 of the log parameters), for prediction bands")
+    lines.append("# covariance and [profiles]: of the fitted coordinates (log10 of the log parameters), for "
+                 "prediction bands")
     lines += [f"{k} = {_toml_value(v)}" for k, v in top.items()]
     for name, table in tables.items():
         lines += ["", f"[{name}]"] + [f"{json.dumps(k)} = {_toml_value(v)}" for k, v in table.items()]
@@ -189,10 +190,12 @@ def read_fit(path, source: str = "command line", key: str = "FIT") -> Fit:
     for name, r in correlation.items():
         _checked(path, f"correlation.{name}", r, -1.0 - SYMMETRY, 1.0 + SYMMETRY, "[-1, 1]")
     goodness = _goodness(path, _table(doc, path, "goodness"), doc["sigma"])
+    profiles = _profiles(path, _table(doc, path, "profiles"), doc["covariance_names"])
+    flat = _vectors(path, "flat_directions", doc.get("flat_directions", []), doc["covariance_names"])
     return Fit(doc["model"], doc["measure"], bool(doc.get("stress_only", False)), doc["parameters"], intervals,
                doc.get("fixed", {}), list(doc.get("conditions", [])), goodness, doc["sigma"], float(level),
                list(doc["covariance_names"]), cov, correlation, list(doc.get("warnings", [])),
-               list(doc.get("open_ends", [])), doc.get("interval_method", ""))
+               list(doc.get("open_ends", [])), doc.get("interval_method", ""), profiles, flat)
 
 
 def _is_number(v) -> bool:
@@ -270,6 +273,30 @@ def _covariance(path: str, names, cov, params: dict) -> list:
     if n and float(np.linalg.eigvalsh((c + c.T) / 2).min()) < -SYMMETRY * scale:
         raise ConfigError(path, "covariance", cov, "a positive semi-definite matrix (|correlation| ≤ 1)")
     return c.tolist()
+
+
+def _profiles(path: str, table: dict, names: list) -> dict:
+    """[profiles]: for a fitted parameter, the best fits along its profile, each a
+    point of the fitted coordinates (one finite number per fitted parameter). Absent in
+    a fit file of an older taimill: predict then falls back to linearised bands."""
+    out = {}
+    for name, points in table.items():
+        if name not in names:
+            raise ConfigError(path, f"profiles.{name}", points, f"a profile of a fitted parameter: {', '.join(names)}")
+        if not points:
+            raise ConfigError(path, f"profiles.{name}", points, "a list of points along the profile, not empty")
+        out[name] = _vectors(path, f"profiles.{name}", points, names)
+    return out
+
+
+def _vectors(path: str, key: str, vectors, names: list) -> list:
+    """A list of points (or directions) of the fitted coordinates: each one finite
+    number per fitted parameter."""
+    ok = isinstance(vectors, list) and all(isinstance(z, list) and len(z) == len(names)
+                                           and all(_is_number(x) and math.isfinite(x) for x in z) for z in vectors)
+    if not ok:
+        raise ConfigError(path, key, "…", f"a list of points, each {len(names)} finite numbers ({', '.join(names)})")
+    return [[float(x) for x in z] for z in vectors]
 
 
 GOODNESS = {  # key -> (lo, hi, lo open, text)

@@ -17,7 +17,13 @@ scatter estimated from the residuals (s² = S/(n − p)). Chosen over the Jacobi
 intervals because the model is far from linear in E* (bin kinks, a rate that can fall
 to zero) and because a profile that never rises is the direct sign that a parameter
 is not identifiable. The Jacobian's covariance is kept for the correlations, the
-profile's step sizes and the prediction bands (taimill.outcome.predict).
+profile's step sizes and the linearised part of the prediction bands.
+
+Each profile's path (the best fit of all parameters at each step of one parameter,
+from its lower to its upper end) is kept too: a prediction's band is the range of the
+prediction along these paths, the parameter sets the data allow at the fit's level,
+where the best fit's covariance sees only the neighbourhood of one point
+(taimill.outcome.predict).
 """
 
 from __future__ import annotations
@@ -37,6 +43,7 @@ CORRELATION_WARN = 0.99  #: |correlation| above this: the data fix a combination
 DECADES_WARN = 3.0  #: a log parameter whose interval spans more decades is poorly determined
 RATIO_TOLERANCE = 0.1  #: conditions whose drive keeps its ratio within this at every threshold
 LOG_BOUND = 50.0  #: log10 bounds of the non-threshold log parameters
+FLAT = 1e-15  #: an eigenvalue of JᵀJ at most this times the largest: a direction the data do not constrain
 
 
 @dataclass
@@ -77,6 +84,12 @@ class Fit:
     warnings: list[str] = field(default_factory=list)
     open_ends: list[str] = field(default_factory=list)
     interval_method: str = "profile likelihood"
+    #: name -> the fitted coordinates (covariance_names' order) of the best fits along its
+    #: profile, lower end to upper end; empty in a fit file of an older taimill
+    profiles: dict[str, list[list[float]]] = field(default_factory=dict)
+    #: unit vectors of the fitted coordinates along which JᵀJ vanishes: the data do not
+    #: constrain the parameters there, where the covariance (a pseudo-inverse) says zero
+    flat_directions: list[list[float]] = field(default_factory=list)
 
 
 class _Problem:
@@ -149,11 +162,12 @@ def fit(model, conds: dict[str, Condition], pts: Points, fixed: dict | None = No
     if n <= k:
         raise ConfigError(pts.source, "points", n, f"need more points than the {k} fitted parameters of {model.name}")
     z, s_min = _start(prob)
-    cov, corr = _covariance(prob, z, s_min, n - k)
+    cov, corr, flat = _covariance(prob, z, s_min, n - k)
     delta = _delta(pts, s_min, n - k, level)
-    intervals, warnings, open_ends = {}, [], []
+    intervals, warnings, open_ends, profiles = {}, [], [], {}
     for j, p in enumerate(prob.free):
-        lo, hi, z, s_min, open_end = _profile(prob, z, s_min, j, delta, cov)
+        lo, hi, z, s_min, open_end, path = _profile(prob, z, s_min, j, delta, cov)
+        profiles[p.name] = [[float(v) for v in zi] for zi in path]
         intervals[p.name] = (float(10.0 ** lo if p.log else lo), float(10.0 ** hi if p.log else hi))
         warnings += _identifiable(prob, p, intervals[p.name], open_end, level)
         open_ends += [f"{p.name} {end}" for end, _ in open_end]
@@ -167,7 +181,8 @@ def fit(model, conds: dict[str, Condition], pts: Points, fixed: dict | None = No
     return Fit(model.name, model.measure, model.stress_only, {q.name: float(best[q.name]) for q in prob.free}, intervals,
                fixed, list(prob.groups), goodness,
                "given" if pts.sigma is not None else "estimated from the residuals", level,
-               [p.name for p in prob.free], cov.tolist(), {f"{a}:{b}": r for (a, b), r in corr.items()}, warnings, open_ends)
+               [p.name for p in prob.free], cov.tolist(), {f"{a}:{b}": r for (a, b), r in corr.items()}, warnings, open_ends,
+               profiles=profiles, flat_directions=flat)
 
 
 def _start(prob: _Problem):
@@ -192,18 +207,24 @@ def _start(prob: _Problem):
 
 
 def _covariance(prob: _Problem, z, s_min: float, dof: int):
-    """The Jacobian's covariance of z (s² (JᵀJ)⁻¹, s² = 1 with given uncertainties) and
-    the correlations of the parameter pairs."""
+    """The Jacobian's covariance of z (s² (JᵀJ)⁻¹, s² = 1 with given uncertainties),
+    the correlations of the parameter pairs, and the flat directions: unit vectors
+    along which JᵀJ vanishes (at most FLAT of its largest eigenvalue; every direction
+    when the residuals do not move at all). The pseudo-inverse gives those directions a
+    variance of zero, the opposite of the truth: predict treats a prediction that moves
+    along one as unbounded."""
     jac = optimize.approx_fprime(z, prob.residuals, 1e-6)
     s2 = 1.0 if prob.pts.sigma is not None else s_min / dof
-    cov = np.linalg.pinv(jac.T @ jac) * s2
+    w, v = np.linalg.eigh(jac.T @ jac)
+    flat = w <= FLAT * max(float(w.max()), 0.0)
+    cov = (v * np.where(flat, 0.0, 1.0 / np.where(flat, 1.0, w))) @ v.T * s2
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     corr = {}
     for a in range(len(z)):
         for b in range(a + 1, len(z)):
             if sd[a] > 0 and sd[b] > 0:
                 corr[(prob.free[a].name, prob.free[b].name)] = float(cov[a, b] / (sd[a] * sd[b]))
-    return cov, corr
+    return cov, corr, [[float(x) for x in v[:, i]] for i in np.flatnonzero(flat)]
 
 
 def _delta(pts: Points, s_min: float, dof: int, level: float) -> float:
@@ -214,22 +235,26 @@ def _delta(pts: Points, s_min: float, dof: int, level: float) -> float:
 
 def _profile(prob: _Problem, z, s_min: float, j: int, delta: float, cov):
     """(lower, upper) ends of parameter j's interval in z, the (possibly improved) best
-    fit z and S, and which ends are open ("lower", "upper")."""
+    fit z and S, which ends are open ("lower", "upper"), and the path: the best fits
+    (all of z) at the steps within the interval and at its ends, ordered by z[j]."""
     p = prob.free[j]
     sd = math.sqrt(max(cov[j, j], 0.0))
     h0 = min(max(sd / 3, 0.005), 0.2) if p.log else (sd / 3 if sd > 0 else 0.05 * abs(z[j]) + 1e-6)
-    ends, open_end = [], []
+    ends, open_end, path = [], [], [z.copy()]
     for sign in (-1, 1):
         h, zi, prev = h0, z.copy(), (z[j], 0.0)
         lo_b, hi_b = prob.bounds[j]
         for step in range(MAX_STEPS):
             x = min(max(prev[0] + sign * h, lo_b), hi_b)
+            inside = zi.copy()
             zi, s = prob.solve(zi, {j: x})
             if s < s_min - 1e-9 * max(s_min, 1.0):  # a better fit than the start found: take it
                 z, s_min = zi.copy(), s
             if s - s_min > delta:
                 ends.append(_crossing(prob, zi, j, prev, (x, s - s_min), delta, s_min))
+                path.append(prob.solve(inside, {j: ends[-1]})[0])
                 break
+            path.append(zi.copy())
             prev = (x, s - s_min)
             if x in (lo_b, hi_b):
                 ends.append(x)
@@ -240,7 +265,7 @@ def _profile(prob: _Problem, z, s_min: float, j: int, delta: float, cov):
         else:
             ends.append(prev[0])
             open_end.append(("lower" if sign < 0 else "upper", "where the search stopped"))
-    return ends[0], ends[1], z, s_min, open_end
+    return ends[0], ends[1], z, s_min, open_end, sorted(path, key=lambda zi: zi[j])
 
 
 def _crossing(prob, z, j, inside, outside, delta: float, s_min: float) -> float:

@@ -119,7 +119,7 @@ def material_data(name: str, source="material", key="material") -> MaterialData:
         t.get("restitution", lo=0, lo_open=True, hi=0.999),  # < 1: damping is calibrated to it
         t.get("restitution_speed_mm_s", lo=0, lo_open=True, hi=1e5) * 1e-3,
         t.get("friction", **RANGES["mu_s"].bounds),
-        t.sources(MATERIAL_NUMBERS + THERMAL_NUMBERS),
+        {k: v for k, v in t.sources(MATERIAL_NUMBERS + THERMAL_NUMBERS).items() if k in MATERIAL_NUMBERS},
     )
     for k in THERMAL_NUMBERS:
         t.get(k, None, lo=0, lo_open=True, hi=1e4)
@@ -144,14 +144,14 @@ class Thermal:
 
 def thermal_data(name: str, source="material", key="material") -> Thermal:
     """The thermal numbers of a built-in material (a one-line error where it has none)."""
-    data = material_data(name, source, key)
+    material_data(name, source, key)  # every number and source checked
     t = _materials_db()["material"][name]
     for k in THERMAL_NUMBERS:
         if k not in t:
             raise ConfigError(MATERIALS_FILE, f"material.{name}.{k}", None,
                               "missing: the heat model needs it (give the number with its source)")
     return Thermal(name, float(t["cp_J_per_kgK"]), float(t["conductivity_W_per_mK"]),
-                   {k: data.sources[k] for k in THERMAL_NUMBERS})
+                   {k: t["source"][k].strip() for k in THERMAL_NUMBERS})
 
 
 def load_friction(name: str, source, key="pair", base: Path | None = None) -> tuple[Friction, str]:

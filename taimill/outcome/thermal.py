@@ -205,14 +205,14 @@ def first_crossing(net: Network, q_on, prog: Programme, node: int, limit: float,
 
 def nu_rotating_cylinder(re: float) -> float:
     """Nusselt number of a cylinder spinning about its axis in still air, Re = ω D²/ν:
-    Nu_D = 0.133 Re^⅔ Pr^⅓ (Kays & Bjorklund 1958; Incropera & DeWitt, §7.4 problems),
-    stated for Re < 4.3·10⁵ and 0.7 < Pr < 670."""
+    Nu_D = 0.133 Re^⅔ Pr^⅓ (Kays & Bjorklund, Trans. ASME 80, 1958, as textbooks
+    quote it), stated for Re < 4.3·10⁵ and 0.7 < Pr < 670."""
     return 0.133 * re ** (2.0 / 3.0) * AIR_PR ** (1.0 / 3.0)
 
 
 def nu_cross_flow(re: float) -> float:
     """Nusselt number of a cylinder in cross flow (Churchill & Bernstein 1977;
-    Incropera & DeWitt eq 7.54), Re·Pr > 0.2."""
+    as in Incropera & DeWitt), Re·Pr > 0.2."""
     pr = AIR_PR
     return 0.3 + 0.62 * re**0.5 * pr ** (1 / 3) / (1 + (0.4 / pr) ** (2 / 3)) ** 0.25 * (1 + (re / 282000) ** 0.625) ** 0.8
 

@@ -174,6 +174,23 @@ def test_predict_closes_the_ledger_and_warns_at_the_limit(run_store, tmp_path):
     assert again.returncode == 2 and "--figure" in one_line(again.stderr)
 
 
+def test_the_runs_dissipated_power_goes_where_it_is_made(run_store):
+    """Every watt the run dissipated heats a body: ball–ball contacts the balls, the
+    side, floor and lid shared between ball and jar by Blok's partition."""
+    from taimill.store.run import open_run
+
+    summary = open_run(run_store).summary
+    by = summary["dissipation_by_mechanism"]
+    wall = sum(v for k in ("side", "floor", "lid") for c in by[k].values() for v in c.values())
+    out = json.loads(predict(run_store, "--json").stdout)
+    assert sum(out["power_W"].values()) == pytest.approx(summary["dissipated_power"], rel=1e-9)
+    assert out["power_W"]["jar"] == pytest.approx(out["wall_share"] * wall, rel=1e-12)
+    b, j = thermal_data("steel-c1020"), thermal_data("aisi-304")  # C1020 balls conduct better than the 304 jar
+    assert out["wall_share"] == pytest.approx(thermal.wall_share(thermal.effusivity(b.conductivity, 7850, b.cp),
+                                                                 thermal.effusivity(j.conductivity, 8030, j.cp)))
+    assert 0.3 < out["wall_share"] < 0.4
+
+
 def test_predict_without_the_powder_cp_or_with_a_bad_programme_is_one_line(run_store):
     r = taimill("heat", "predict", run_store)
     assert r.returncode == 2 and "--powder-cp" in one_line(r.stderr)

@@ -128,10 +128,9 @@ def setup_of_run(a) -> tuple:
     area_out = 2 * math.pi * r_out * h_out_len + math.pi * r_out**2  # side and lid; the floor sits in the clamp
     n, r = int(balls["count"]), float(balls["radius"])
     rho_b = float(balls["material"]["density"])
-    spin = float(cfg.get("plate_omega", 0.0)) + float(cfg.get("jar_spin", 0.0))  # absolute, rad/s
-    orbit = abs(float(cfg.get("plate_omega", 0.0))) * float(cfg.get("plate_radius", 0.0))
-    hj = thermal.h_jar(2 * r_out, spin, orbit)
-    v_ball = abs(float(cfg.get("jar_spin", 0.0))) * r_in  # the wall's speed past the charge, in the jar's frame
+    plate, spin = float(cfg.get("plate_omega", 0.0)), float(cfg.get("jar_spin", 0.0))  # rad/s; the jar's is absolute
+    hj = thermal.h_jar(2 * r_out, spin, abs(plate) * float(cfg.get("plate_radius", 0.0)))
+    v_ball = abs(spin - plate) * r_in  # the wall's speed past the charge, which the plate holds outward
     h_ball = thermal.nu_sphere(v_ball * 2 * r / thermal.AIR_NU) * thermal.AIR_K / (2 * r)
     p_bb = sum(v for c in by["ball_ball"].values() for v in c.values())
     p_bw = sum(v for k in ("side", "floor", "lid") for c in by[k].values() for v in c.values())

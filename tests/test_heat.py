@@ -115,6 +115,22 @@ def test_energy_ledger_closes_to_1e_9(seed):
     assert h.residual < 1e-9
 
 
+def test_from_ambient_no_cycle_exceeds_the_periodic_one():
+    """The shortcut the limit check takes: started cold, every sample of a long
+    programme stays at or below the periodic cycle's highest temperature."""
+    rng = np.random.default_rng(7)
+    G = np.triu(rng.uniform(0.01, 2.0, (3, 3)), 1)
+    net = thermal.Network(thermal.NODES, rng.uniform(5.0, 800.0, 3), G + G.T, np.array([0.0, 0.0, 0.3]))
+    q = rng.uniform(0, 5, 3)
+    prog = thermal.Programme(600.0, 300.0, 30 * 900.0)
+    top = thermal.cycle_max(net, q, prog)
+    h = thermal.simulate(net, q, prog, samples=30)
+    assert np.all(h.x.max(axis=0) <= top * (1 + 1e-9))
+    assert np.all(h.x.max(axis=0) >= 0.99 * top)  # and reaches it after 30 cycles
+    assert thermal.first_crossing(net, q, prog, 1, 1.001 * top[1]) is None
+    assert thermal.first_crossing(net, q, prog, 1, 0.98 * top[1]) is not None
+
+
 def test_a_network_without_a_path_to_ambient_is_refused():
     net = thermal.Network(("a",), np.array([1.0]), np.zeros((1, 1)), np.array([0.0]))
     with pytest.raises(ValueError, match="no path to ambient"):
@@ -194,6 +210,8 @@ def test_the_runs_dissipated_power_goes_where_it_is_made(run_store):
 def test_predict_without_the_powder_cp_or_with_a_bad_programme_is_one_line(run_store):
     r = taimill("heat", "predict", run_store)
     assert r.returncode == 2 and "--powder-cp" in one_line(r.stderr)
+    r = predict("summary.json")
+    assert r.returncode == 2 and "a summary JSON does not hold" in one_line(r.stderr)
     for bad in ("15", "15:x", "0:5", "-3:1"):
         r = predict(run_store, "--programme", bad)
         assert r.returncode == 2 and "--programme" in one_line(r.stderr), bad

@@ -87,6 +87,9 @@ def setup_of_run(a) -> tuple:
     from taimill.outcome import thermal
     from taimill.store.run import open_run
 
+    if a.run.lower().endswith(".json"):
+        raise ConfigError("command line", "run", a.run, "a run store (RUN.zarr): a summary JSON does not hold the "
+                          "balls, the jar and the powder")
     try:
         run = open_run(a.run)
     except StoreError as err:
@@ -192,7 +195,7 @@ def cmd_predict(a) -> int:
         raise ConfigError("command line", "--limit", a.limit, f"allowed range ({a.ambient:g}, 2000] °C (above --ambient)")
     given = _outputs(a, [*inputs, a.run])
     net, q = thermal.network(s)
-    hist = thermal.simulate(net, q, prog)
+    hist = thermal.simulate(net, q, prog, samples=max(1, min(20, 40_000 // len(prog.phases()))))
     per = thermal.periodic(net, q, prog)
     cont = thermal.steady(net, q)
     crossing = None

@@ -138,6 +138,23 @@ def periodic(net: Network, q_on, prog: Programme) -> dict:
     return {"end_of_run": A_on @ x_pause + b_on, "end_of_pause": x_pause}
 
 
+def cycle_max(net: Network, q_on, prog: Programme, points: int = 400) -> np.ndarray:
+    """Each node's highest temperature above ambient over a cycle of the periodic
+    state (on a fine grid). Started from ambient, no node ever exceeds it: e^{-C⁻¹K t}
+    has no negative entries (heat only flows from warm to cold), so the cycles' states
+    rise monotonically towards the periodic one and stay below it."""
+    m = modes(net)
+    per = periodic(net, q_on, prog)
+    x, q = per["end_of_pause"], np.asarray(q_on, float)
+    if prog.pause_s <= 0:
+        return per["end_of_run"]
+    top = np.maximum(per["end_of_run"], x)
+    for length, power, start in ((prog.run_s, q, x), (prog.pause_s, np.zeros(len(q)), per["end_of_run"])):
+        for t in np.linspace(0.0, length, points):
+            top = np.maximum(top, advance(m, start, power, t))
+    return top
+
+
 @dataclass
 class History:
     """Temperatures above ambient at `times` (s), one column per node, and the energy
@@ -182,6 +199,8 @@ def first_crossing(net: Network, q_on, prog: Programme, node: int, limit: float,
     the programme). Found on a fine grid of each phase, then by bisection."""
     m = modes(net)
     n = len(net.C)
+    if x0 is None and cycle_max(net, q_on, prog)[node] < limit:
+        return None  # from ambient, no node ever exceeds the periodic cycle (below)
     x = np.zeros(n) if x0 is None else np.asarray(x0, float)
     if x[node] >= limit:
         return 0.0

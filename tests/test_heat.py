@@ -161,6 +161,15 @@ def test_every_catalogue_material_has_sourced_thermal_numbers():
 # ------------------------------------------------------------------ through the command line
 
 
+def test_materials_shows_the_thermal_numbers_with_their_sources():
+    r = taimill("materials", "zirconia")
+    assert r.returncode == 0, r.stderr
+    assert "c_p J/kgK" in r.stdout and "Callister" in r.stdout and "k W/mK" in r.stdout
+    rows = json.loads(taimill("materials", "--json").stdout)
+    agate = next(x for x in rows if x["name"] == "agate")
+    assert agate["cp_J_per_kgK"] == 740 and "cp_J_per_kgK" in agate["estimates"]
+
+
 @pytest.fixture(scope="module")
 def run_store(tmp_path_factory):
     out = tmp_path_factory.mktemp("heat") / "run.zarr"

@@ -272,3 +272,22 @@ def test_missing_or_binary_measurement_file_is_one_line(run_store, tmp_path):
     bad.write_bytes(b"\xff\xfe\x00time")
     r = taimill("heat", "fit", run_store, "--measured", bad, "--powder-cp", "1200")
     assert r.returncode == 2 and "UTF-8" in one_line(r.stderr)
+
+
+def test_sigterm_during_a_long_prediction_leaves_nothing(run_store, tmp_path):
+    """SIGTERM while a long programme is computed: exit 143 in one line, and neither the
+    figure nor a part of it is left to block the rerun."""
+    import signal
+    import time
+
+    fig = tmp_path / "long.png"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    p = subprocess.Popen(command("heat", "predict", run_store, "--powder-cp", "1200", "--programme", "0.5:0.5",
+                                 "--hours", "1000", "--limit", "1000", "--figure", fig),
+                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    time.sleep(2.5)
+    p.send_signal(signal.SIGTERM)
+    out, err = p.communicate(timeout=120)
+    assert p.returncode == 143, err
+    assert "SIGTERM" in one_line(err)
+    assert list(tmp_path.iterdir()) == []

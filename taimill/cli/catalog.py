@@ -267,14 +267,19 @@ def material_row(data) -> dict:
     from taimill.model.materials import thermal_data
     from taimill.model.tables import is_estimate
 
+    from taimill.errors import ConfigError
+
     m = data.material
-    heat = thermal_data(data.name)
+    try:
+        heat = thermal_data(data.name)
+        thermal = {"cp_J_per_kgK": heat.cp, "conductivity_W_per_mK": heat.conductivity}, heat.sources
+    except ConfigError:  # a material without thermal numbers: listed all the same, `taimill heat` refuses it
+        thermal = {"cp_J_per_kgK": None, "conductivity_W_per_mK": None}, {}
     return {"name": data.name, "density_kg_m3": m.density, "youngs_modulus_gpa": m.youngs_modulus / 1e9,
             "poisson": m.poisson, "restitution": data.restitution,
             "restitution_speed_mm_s": round(data.restitution_speed * 1e3, 9), "friction": data.friction,
-            "cp_J_per_kgK": heat.cp, "conductivity_W_per_mK": heat.conductivity,
-            "sources": {**data.sources, **heat.sources},
-            "estimates": data.estimates() + [k for k, v in heat.sources.items() if is_estimate(v)]}
+            **thermal[0], "sources": {**data.sources, **thermal[1]},
+            "estimates": data.estimates() + [k for k, v in thermal[1].items() if is_estimate(v)]}
 
 
 def pair_row(name: str) -> dict:
@@ -314,7 +319,7 @@ def cmd_materials(a) -> int:
     if a.name:
         r = rows[0]
         print(f"{r['name']}:")
-        for key, label, _, fmt in MATERIAL_COLUMNS + THERMAL_COLUMNS:
+        for key, label, _, fmt in MATERIAL_COLUMNS + tuple(c for c in THERMAL_COLUMNS if r[c[0]] is not None):
             mark = "  (estimate)" if key in r["estimates"] else ""
             print(f"  {label:9} {format(r[key], fmt):>8}{mark}\n            {r['sources'][key]}")
         return 0

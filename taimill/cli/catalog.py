@@ -264,10 +264,9 @@ THERMAL_COLUMNS = (("cp_J_per_kgK", "c_p J/kgK", 8, "g"), ("conductivity_W_per_m
 
 def material_row(data) -> dict:
     """A material's numbers in its file's units, with their sources and estimates."""
+    from taimill.errors import ConfigError
     from taimill.model.materials import thermal_data
     from taimill.model.tables import is_estimate
-
-    from taimill.errors import ConfigError
 
     m = data.material
     try:

@@ -259,15 +259,26 @@ def cmd_mills(a) -> int:
 
 MATERIAL_COLUMNS = (("density_kg_m3", "ρ kg/m³", 8, "g"), ("youngs_modulus_gpa", "E GPa", 6, "g"), ("poisson", "ν", 6, "g"),
                     ("restitution", "e", 6, "g"), ("restitution_speed_mm_s", "at mm/s", 8, "g"), ("friction", "μ", 5, "g"))
+THERMAL_COLUMNS = (("cp_J_per_kgK", "c_p J/kgK", 8, "g"), ("conductivity_W_per_mK", "k W/mK", 8, "g"))  #: `materials NAME`, the heat model
 
 
 def material_row(data) -> dict:
     """A material's numbers in its file's units, with their sources and estimates."""
+    from taimill.errors import ConfigError
+    from taimill.model.materials import thermal_data
+    from taimill.model.tables import is_estimate
+
     m = data.material
+    try:
+        heat = thermal_data(data.name)
+        thermal = {"cp_J_per_kgK": heat.cp, "conductivity_W_per_mK": heat.conductivity}, heat.sources
+    except ConfigError:  # a material without thermal numbers: listed all the same, `taimill heat` refuses it
+        thermal = {"cp_J_per_kgK": None, "conductivity_W_per_mK": None}, {}
     return {"name": data.name, "density_kg_m3": m.density, "youngs_modulus_gpa": m.youngs_modulus / 1e9,
             "poisson": m.poisson, "restitution": data.restitution,
             "restitution_speed_mm_s": round(data.restitution_speed * 1e3, 9), "friction": data.friction,
-            "sources": dict(data.sources), "estimates": data.estimates()}
+            **thermal[0], "sources": {**data.sources, **thermal[1]},
+            "estimates": data.estimates() + [k for k, v in thermal[1].items() if is_estimate(v)]}
 
 
 def pair_row(name: str) -> dict:
@@ -307,7 +318,7 @@ def cmd_materials(a) -> int:
     if a.name:
         r = rows[0]
         print(f"{r['name']}:")
-        for key, label, _, fmt in MATERIAL_COLUMNS:
+        for key, label, _, fmt in MATERIAL_COLUMNS + tuple(c for c in THERMAL_COLUMNS if r[c[0]] is not None):
             mark = "  (estimate)" if key in r["estimates"] else ""
             print(f"  {label:9} {format(r[key], fmt):>8}{mark}\n            {r['sources'][key]}")
         return 0

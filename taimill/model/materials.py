@@ -19,7 +19,9 @@ MATERIALS_FILE = files.PACKAGE / "data" / "materials.toml"
 # The keys of each kind of table (unknown keys are errors, reported with the nearest known one)
 FRICTION_KEYS = ("mu_s", "mu_d", "v_s_mm_s", "v_d_mm_s", "mu_r", "tangential", "rolling")
 MATERIAL_NUMBERS = ("density_kg_m3", "youngs_modulus_gpa", "poisson", "restitution", "restitution_speed_mm_s", "friction")
-MATERIAL_KEYS = (*MATERIAL_NUMBERS, "source")
+# Thermal numbers (optional: the heat model, taimill.outcome.thermal, needs them)
+THERMAL_NUMBERS = ("cp_J_per_kgK", "conductivity_W_per_mK")
+MATERIAL_KEYS = (*MATERIAL_NUMBERS, *THERMAL_NUMBERS, "source")
 
 
 @dataclass(frozen=True)
@@ -117,10 +119,39 @@ def material_data(name: str, source="material", key="material") -> MaterialData:
         t.get("restitution", lo=0, lo_open=True, hi=0.999),  # < 1: damping is calibrated to it
         t.get("restitution_speed_mm_s", lo=0, lo_open=True, hi=1e5) * 1e-3,
         t.get("friction", **RANGES["mu_s"].bounds),
-        t.sources(MATERIAL_NUMBERS),
+        {k: v for k, v in t.sources(MATERIAL_NUMBERS + THERMAL_NUMBERS).items() if k in MATERIAL_NUMBERS},
     )
+    for k in THERMAL_NUMBERS:
+        t.get(k, None, lo=0, lo_open=True, hi=1e4)
     t.done()
     return data
+
+
+@dataclass(frozen=True)
+class Thermal:
+    """A material's specific heat capacity and thermal conductivity near room
+    temperature, each with its source (a text starting "estimate" marks an estimate)."""
+
+    name: str
+    cp: float  #: J/(kg K)
+    conductivity: float  #: W/(m K)
+    sources: dict
+
+    def estimate_notes(self, role: str) -> list[str]:
+        return [f"{role} {self.name}: {k} is an estimate, not a measured value ({v})"
+                for k, v in self.sources.items() if is_estimate(v)]
+
+
+def thermal_data(name: str, source="material", key="material") -> Thermal:
+    """The thermal numbers of a built-in material (a one-line error where it has none)."""
+    material_data(name, source, key)  # every number and source checked
+    t = _materials_db()["material"][name]
+    for k in THERMAL_NUMBERS:
+        if k not in t:
+            raise ConfigError(MATERIALS_FILE, f"material.{name}.{k}", None,
+                              "missing: the heat model needs it (give the number with its source)")
+    return Thermal(name, float(t["cp_J_per_kgK"]), float(t["conductivity_W_per_mK"]),
+                   {k: t["source"][k].strip() for k in THERMAL_NUMBERS})
 
 
 def load_friction(name: str, source, key="pair", base: Path | None = None) -> tuple[Friction, str]:

@@ -273,6 +273,29 @@ def test_a_sigma_column_weights_the_fit_and_is_checked(tmp_path):
     assert res.returncode == 2 and "'sigma' has no unit" in one_line(res.stderr)
 
 
+def test_a_feed_measured_from_a_coarse_size_up_keeps_its_fine_tail_out_of_the_sink():
+    # a log-normal feed (x50 200 µm) measured only where it passes more than 0.05 %: the
+    # share below the smallest measured size follows the tail, not the finest class
+    q = passing(CLASSES, FEED)[0][::-1]
+    x = CLASSES.edges[::-1]
+    keep = q > 0.0005
+    m = sf.measured_feed(CLASSES, x[keep], q[keep])
+    assert m.sum() == pytest.approx(1.0) and m[-1] < 1e-6 < q[keep][0]
+    assert np.abs(m - FEED).max() < 2e-3
+
+
+def test_the_shipped_size_example_is_what_its_script_makes(tmp_path):
+    sys.path.insert(0, str(ROOT / "scripts"))
+    try:
+        import make_sizes_example
+    finally:
+        sys.path.remove(str(ROOT / "scripts"))
+    make_sizes_example.generate(tmp_path)
+    made = (tmp_path / "sizes.csv").read_text()
+    assert made == (EXAMPLES / "sizes.csv").read_text() and made.startswith("# SYNTHETIC")
+    assert sf.read_fit(EXAMPLES / "sizes-fit.toml").conditions == ["condition-a.json", "condition-b.json"]
+
+
 # ---------------------------------------------------------------- figures
 def test_the_fit_figure_has_a_panel_per_condition_and_the_two_summaries(fitted):
     d, _ = fitted

@@ -44,9 +44,10 @@ def register(sub) -> None:
     f.add_argument("--json", action="store_true", help="print one JSON object")
     f.set_defaults(fn=cmd_fit)
     q = s.add_parser("predict", help="size distributions over milling time from a parameter file or a fit, at conditions")
-    q.add_argument("inputs", type=path_text, nargs="+", metavar="[PARAMS.toml] CONDITION",
-                   help="a grinding parameter file (TOML: [breakage], [impact], [attrition]; not with --fit), then run "
-                   "stores, SWEEP.zarr#INDEX, a whole sweep SWEEP.zarr, or condition files NAME.json")
+    q.add_argument("inputs", type=path_text, nargs="+", metavar="FILE",
+                   help="PARAMS.toml CONDITION… without --fit, CONDITION… with it: a grinding parameter file (TOML: "
+                   "[breakage], [impact], [attrition]), then run stores, SWEEP.zarr#INDEX, a whole sweep SWEEP.zarr, "
+                   "or condition files NAME.json")
     q.add_argument("--fit", type=path_text, metavar="FIT.toml", help="a fit file of taimill sizes fit: bands on "
                    "x10, x50, x90 and on the time to target")
     q.add_argument("--rank", action="store_true", help="order the conditions by time to --target-x90, fastest first")

@@ -161,10 +161,18 @@ def at_sizes(classes: SizeClasses, q: np.ndarray, x) -> np.ndarray:
 # ---------------------------------------------------------------- the data
 def measured_feed(classes: SizeClasses, x, q) -> np.ndarray:
     """Masses per class of a measured distribution (sizes x m increasing, shares q),
-    log-linear between its points: what lies above the top edge joins the coarsest
-    class, what lies below the smallest measured size (its share there) the sink
-    and the classes below it as the share at that size says."""
-    below = np.interp(np.log(classes.edges), np.log(x), q, left=float(q[0]), right=1.0)  # passing each edge
+    log-linear between its points; what lies above the top edge joins the coarsest
+    class. Below the smallest measured size the share falls as the power law through
+    the two finest points that differ (Gates–Gaudin–Schuhmann's fine tail), not into
+    the sink: a feed measured from 50 µm up holds no dust of the finest class."""
+    x, q = np.asarray(x, dtype=float), np.asarray(q, dtype=float)
+    logs = np.log(classes.edges)
+    below = np.interp(logs, np.log(x), q, left=float(q[0]), right=1.0)  # passing each edge
+    finer = logs < math.log(x[0])
+    rising = np.flatnonzero(q > q[0])
+    if q[0] > 0 and rising.size and finer.any():
+        slope = math.log(q[rising[0]] / q[0]) / math.log(x[rising[0]] / x[0])
+        below[finer] = q[0] * np.exp(slope * (logs[finer] - math.log(x[0])))
     m = np.append(below[:-1] - below[1:], below[-1])
     m[0] += 1.0 - below[0]
     m = np.maximum(m, 0.0)

@@ -10,8 +10,10 @@ import math
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -246,6 +248,28 @@ def test_outputs_follow_the_house_rules(fitted):
         assert (d / out).read_bytes() == before
     res = taimill("sizes", "fit", "sizes.csv", "--out", "new.toml", "--figure", "fit.txt", cwd=d)
     assert res.returncode == 2 and "--figure" in one_line(res.stderr) and not (d / "new.toml").exists()
+
+
+def test_sigterm_during_the_fit_keeps_the_old_fit_and_leaves_nothing_that_blocks_the_rerun(fitted, tmp_path):
+    d, _ = fitted
+    for name in ("sizes.csv", "a.json", "b.json", "fit.toml", "fit.svg"):
+        shutil.copy(d / name, tmp_path / name)
+    old = {n: (tmp_path / n).read_bytes() for n in ("fit.toml", "fit.svg")}
+    argv = command("sizes", "fit", "sizes.csv", "--out", "fit.toml", "--figure", "fit.svg", "--overwrite")
+    proc = subprocess.Popen(argv, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": str(ROOT)})
+    lock = tmp_path / "fit.toml.lock"  # taken once the outputs are checked, before the fit
+    end = time.monotonic() + 120
+    while not lock.exists() and proc.poll() is None and time.monotonic() < end:
+        time.sleep(0.002)
+    assert lock.exists(), "the fit never held its output"
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err
+    line = one_line(err)
+    assert line.startswith("taimill: terminated (SIGTERM)") and "fit.toml is unchanged" in line, line
+    assert {n: (tmp_path / n).read_bytes() for n in old} == old
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.json", "fit.svg", "fit.toml", "sizes.csv"]
 
 
 def test_the_feed_is_needed(tmp_path):

@@ -195,7 +195,7 @@ def test_cli_round_trip_fit_then_predict_with_bands_and_a_ranking(fitted):
     assert a["x90_m"][2] == pytest.approx(math.exp(np.interp(0.9, m.passing, np.log(m.sizes))), rel=0.05)
 
 
-def test_cli_predict_table_gives_bands_and_a_whole_sweep_would_expand(fitted):
+def test_cli_predict_table_gives_bands_and_marks_the_feed(fitted):
     d, _ = fitted
     res = taimill("sizes", "predict", "--fit", "fit.toml", "c.json", "--hours", "0,2", "--target-x90", 20, cwd=d)
     assert res.returncode == 0, res.stderr

@@ -341,16 +341,24 @@ def _start(prob: Problem):
 
 
 def _covariance(prob: Problem, z):
-    """(JᵀJ)⁻¹ of the log10 parameters (σ given), and each pair's correlation."""
+    """(JᵀJ)⁻¹ of the log10 parameters (σ given), and each pair's correlation. The
+    covariance (for bands) is the pseudo-inverse: a direction the data do not fix at
+    all is left out, not given an unbounded variance that rounding in a prediction's
+    gradient would turn into an unbounded band. The correlations come from a slightly
+    regularised inverse instead, which keeps such a direction: two parameters that
+    only enter as a product (xw_min · capture) then correlate −1, as they trade off;
+    the pseudo-inverse would report the surviving direction's +1."""
     jac = optimize.approx_fprime(z, prob.residuals, 1e-6)
-    cov = np.linalg.pinv(jac.T @ jac)
+    info = jac.T @ jac
+    cov = np.linalg.pinv(info)
     cov = (cov + cov.T) / 2
-    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    ridge = np.linalg.inv(info + 1e-10 * max(float(np.trace(info)), 1e-300) * np.eye(len(z)))
+    sd = np.sqrt(np.maximum(np.diag(ridge), 0.0))
     corr = {}
     for a in range(len(z)):
         for b in range(a + 1, len(z)):
             if sd[a] > 0 and sd[b] > 0:
-                corr[(prob.free[a], prob.free[b])] = float(np.clip(cov[a, b] / (sd[a] * sd[b]), -1.0, 1.0))
+                corr[(prob.free[a], prob.free[b])] = float(np.clip(ridge[a, b] / (sd[a] * sd[b]), -1.0, 1.0))
     return cov, corr
 
 

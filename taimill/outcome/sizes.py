@@ -14,10 +14,11 @@ SWEEP.zarr#INDEX or a condition file, as in the kinetics points; a relative path
 the CSV's folder). The optional sigma column is the passing share's standard
 uncertainty (one standard deviation, in percentage points or as a fraction), on every
 line; `taimill sizes fit` weights by it (without it, by 2 % of each share). The lines
-of one distribution (one condition and time) come together, sizes increasing, the passing share never falling. A column without a unit, a share
-above 100 % (or a fraction above 1: percent under a fraction's name) or a size no
-powder has (below 1 nm or above 0.1 m: metres under µm's name, or µm under metres') is
-refused with the line and column.
+of one distribution (one condition and time) come together, sizes increasing, the
+passing share never falling. A column without a unit, a share above 100 % (or a
+fraction above 1: percent under a fraction's name) or a size no powder has (below 1 nm
+or above 0.1 m: metres under µm's name, or µm under metres') is refused with the line
+and column.
 """
 
 from __future__ import annotations

@@ -513,8 +513,10 @@ def time_to_target(fit: SizeFit, cond, m0, target_m: float) -> tuple[float, floa
     def t(p):
         return np.array([time_to_x90(grinding(p, fit.measure, fit.stress_only), fit.classes, cond, m0, target_m)])
 
-    v, lo, hi = banded(fit, t)
-    return float(v[0]), float(lo[0]), float(hi[0])
+    v, lo, hi = (float(a[0]) for a in banded(fit, t))
+    if v == 0.0:  # the feed is already as fine: no parameter changes that
+        return 0.0, 0.0, 0.0
+    return v, lo, (math.inf if v == math.inf else hi)
 
 
 def selection_rates(fit: SizeFit, cond) -> dict[str, np.ndarray]:

@@ -272,6 +272,37 @@ def test_sigterm_during_the_fit_keeps_the_old_fit_and_leaves_nothing_that_blocks
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.json", "fit.svg", "fit.toml", "sizes.csv"]
 
 
+@pytest.fixture
+def full_disk(tmp_path):
+    """A 2 MB tmpfs filled but for about 12 kB: room for a fit file, not for a figure."""
+    mnt = tmp_path / "disk"
+    mnt.mkdir()
+    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mnt)], capture_output=True, text=True,
+                         check=False)
+    if res.returncode != 0:
+        pytest.skip(f"cannot mount a small tmpfs here ({res.stderr.strip() or res.returncode})")
+    try:
+        free = os.statvfs(mnt).f_bavail * os.statvfs(mnt).f_frsize
+        (mnt / "filler").write_bytes(b"\0" * (free - 12 * 1024))
+        yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], check=False)
+
+
+def test_a_full_disk_is_exit_5_one_line_and_leaves_nothing_half_written(fitted, full_disk):
+    d, _ = fitted
+    argv = ["sizes", "fit", "sizes.csv", "--out", full_disk / "fit.toml", "--figure", full_disk / "fit.png"]
+    res = taimill(*argv, cwd=d)
+    assert res.returncode == 5, res.stderr
+    line = one_line(res.stderr)
+    assert "No space left on device" in line and (str(full_disk / "fit.png") in line or str(full_disk / "fit.toml") in line)
+    assert sorted(p.name for p in full_disk.iterdir()) == ["filler"]  # no fit without its figure, no partial, no lock
+    (full_disk / "filler").unlink()
+    res = taimill(*argv, cwd=d)  # the same command, once there is room
+    assert res.returncode == 0, res.stderr
+    assert sorted(p.name for p in full_disk.iterdir()) == ["fit.png", "fit.toml"]
+
+
 def test_the_feed_is_needed(tmp_path):
     shutil.copy(EXAMPLES / "condition-a.json", tmp_path / "a.json")
     dists = [x for x in synthetic(0, conditions="a") if x.time > 0]

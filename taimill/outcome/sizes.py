@@ -6,15 +6,19 @@ A header line names the columns, each quantity with its unit (any order; `#` lin
 blank lines are skipped):
 
     condition, time_h | time_min | time_s, size_um | size_mm | size_m, passing_pct | passing_fraction
+    [, sigma_pct | sigma_fraction]
 
 then one line per point of a cumulative distribution: the share of the mass finer than
 `size` (laser diffraction's Q3) at milling time `time` under `condition` (a run store,
 SWEEP.zarr#INDEX or a condition file, as in the kinetics points; a relative path from
-the CSV's folder). The lines of one distribution (one condition and time) come together,
-sizes increasing, the passing share never falling. A column without a unit, a share
-above 100 % (or a fraction above 1: percent under a fraction's name) or a size no
-powder has (below 1 nm or above 0.1 m: metres under µm's name, or µm under metres') is
-refused with the line and column.
+the CSV's folder). The optional sigma column is the passing share's standard
+uncertainty (one standard deviation, in percentage points or as a fraction), on every
+line; `taimill sizes fit` weights by it (without it, by 2 % of each share). The lines
+of one distribution (one condition and time) come together, sizes increasing, the
+passing share never falling. A column without a unit, a share above 100 % (or a
+fraction above 1: percent under a fraction's name) or a size no powder has (below 1 nm
+or above 0.1 m: metres under µm's name, or µm under metres') is refused with the line
+and column.
 """
 
 from __future__ import annotations
@@ -32,8 +36,10 @@ TIME_UNITS = {"time_s": 1.0, "time_min": 60.0, "time_h": 3600.0}  #: to s
 SIZE_UNITS = {"size_m": 1.0, "size_mm": 1e-3, "size_um": 1e-6}  #: to m
 PASSING_UNITS = {"passing_fraction": 1.0, "passing_pct": 0.01}  #: to a fraction
 SIZE_RANGE = (1e-9, 0.1)  #: m: what a milled powder's particles can measure
+SIGMA_UNITS = {"sigma_fraction": 1.0, "sigma_pct": 0.01}  #: to a fraction (of the whole charge, like passing)
 QUANTITIES = (("condition", {"condition": None}), ("time", TIME_UNITS), ("size", SIZE_UNITS),
               ("passing", PASSING_UNITS))
+OPTIONAL = (("sigma", SIGMA_UNITS),)  #: columns a file may give: the passing share's standard uncertainty
 
 
 @dataclass(frozen=True)
@@ -46,6 +52,7 @@ class Distribution:
     sizes: np.ndarray
     passing: np.ndarray
     line: int
+    sigma: np.ndarray | None = None  #: fraction, one standard uncertainty of each passing share (None: not given)
 
 
 def _header(path: str, n: int, head: str) -> dict[str, tuple[str, float | None]]:
@@ -61,12 +68,20 @@ def _header(path: str, n: int, head: str) -> dict[str, tuple[str, float | None]]
                    f"has {'no column' if not given else 'two columns'} for the {quantity}: one of {allowed}")
             raise ConfigError(f"{path}: line {n}", "header", head, why)
         found[quantity] = (given[0], units[given[0]])
+    for quantity, units in OPTIONAL:
+        given = [h for h in names if h in units]
+        if len(given) > 1 or quantity in names:
+            why = (f"{quantity!r} has no unit: name it {' | '.join(units)}" if quantity in names else
+                   f"has two columns for the {quantity}: one of {' | '.join(units)}")
+            raise ConfigError(f"{path}: line {n}", "header", head, why)
+        if given:
+            found[quantity] = (given[0], units[given[0]])
     known = {c for _, (c, _) in found.items()}
     extra = [h for h in names if h not in known]
     if extra:
         raise ConfigError(f"{path}: line {n}", f"column {names.index(extra[0]) + 1}", extra[0],
                           "unknown: the columns are condition, time_h|time_min|time_s, size_um|size_mm|size_m, "
-                          "passing_pct|passing_fraction")
+                          "passing_pct|passing_fraction[, sigma_pct|sigma_fraction]")
     return {q: (c, f) for q, (c, f) in found.items()} | {"_order": names}
 
 
@@ -129,7 +144,13 @@ def read_distributions(path, source: str = "command line", key: str = "SIZES") -
         if k in groups and last != k:
             raise ConfigError(where, col("time"), cell[t_col], f"this distribution ({cond} at {cell[t_col]}) began at "
                               f"line {groups[k]['line']} and was interrupted: give its lines together")
-        g = groups.setdefault(k, {"line": n, "x": [], "q": [], "n": []})
+        if "sigma" in cols:
+            s_col, s_f = cols["sigma"]
+            sd = _value(cell[s_col], where, col("sigma"))
+            if not 0 < sd * s_f <= 1:
+                raise ConfigError(where, col("sigma"), cell[s_col], f"an uncertainty in (0, {1 / s_f:g}] (one standard "
+                                  "deviation of the passing share, in the column's unit)")
+        g = groups.setdefault(k, {"line": n, "x": [], "q": [], "n": [], "s": []})
         if g["x"] and x <= g["x"][-1]:
             raise ConfigError(where, col("size"), cell[x_col], f"sizes of a distribution must increase (line "
                               f"{g['n'][-1]} had {g['x'][-1] / x_f:g})")
@@ -139,5 +160,8 @@ def read_distributions(path, source: str = "command line", key: str = "SIZES") -
         g["x"].append(x)
         g["q"].append(q * q_f)
         g["n"].append(n)
+        if "sigma" in cols:
+            g["s"].append(sd * s_f)
         last = k
-    return [Distribution(c, t, np.array(g["x"]), np.array(g["q"]), g["line"]) for (c, t), g in groups.items()]
+    return [Distribution(c, t, np.array(g["x"]), np.array(g["q"]), g["line"], np.array(g["s"]) if g["s"] else None)
+            for (c, t), g in groups.items()]

@@ -181,6 +181,10 @@ def _typed_cases():
 
 # (name, argv, words)
 VALUES = [
+    # heat: a store that is none, a programme or limit out of range
+    ("heat predict a file that is no store", ["heat", "predict", "{in}/afile.zarr", "--powder-cp", "1200"], ["afile.zarr"]),
+    ("heat predict no config", ["heat", "predict", "{in}/noconfig.zarr", "--powder-cp", "1200"], ["noconfig.zarr"]),
+    ("heat predict --programme 0:5", ["heat", "predict", "{in}/noconfig.zarr", "--programme", "0:5"], ["--programme"]),
     # the LIGGGHTS bridge: the same overrides and output checks as run
     ("export liggghts --ratio nan", ["export", "liggghts", PRESET, "--ratio", "nan", "--out", "{work}/case"], ["--ratio", "finite"]),
     ("export liggghts --plate-rpm 0", ["export", "liggghts", PRESET, "--plate-rpm", "0", "--out", "{work}/case"], ["plate_rpm", "undefined"]),

@@ -91,12 +91,17 @@ are the per-core figures to quote; wall figures then measure the machine's load.
    exit, the exit code (130), the last line said, and whether what is left is readable
    (the run or sweep store opens and checks) or nothing was written.
 
+10. Population balance (issue 47: a condition's 0–64 h curve in well under a second):
+   `taimill.outcome.grinding.grind` over 40 √2 classes at the 10 default milling times
+   of `taimill sizes predict`, impact and attrition on, on the shipped condition
+   examples/outcome/condition-a.json; best of 5 after one untimed call (imports).
+
 8. A/B (`--ab DIR`, alone): the reference case (CPU µs per step, one thread, 3 s) and the
    settled 10⁵ dense bed of section 5 (CPU ns per ball-step) from this checkout and
    from the one in DIR, interleaved rounds in one run, best of each: a change's
    before/after on the same machine at the same time.
 
-    scripts/bench.py [--quick] [--only reference|scaling|recording|sweep|dense|presets|trajectory|signals] [--skip-million] [--json FILE]
+    scripts/bench.py [--quick] [--only reference|scaling|recording|sweep|dense|presets|trajectory|signals|grinding] [--skip-million] [--json FILE]
     scripts/bench.py --ab DIR
 """
 
@@ -1310,11 +1315,34 @@ def signals_section() -> list[dict]:
     return rows
 
 
+def grinding_section() -> dict:
+    from taimill.outcome.condition import read_file
+    from taimill.outcome.grinding import Austin, Grinding, SizeClasses, feed, grind
+
+    cond = read_file(ROOT / "examples" / "outcome" / "condition-a.json")
+    classes = SizeClasses(8e-4, 39)  # 40 classes with the sink
+    g = Grinding(Austin(0.4, 0.9, 3.5), capture_g=1e-3, f_mat=0.5, xw_min=0.05, k_att=1e-4)
+    m0 = feed(classes, 200e-6, 0.5)
+    hours = [0, 0.25, 0.5, 1, 2, 4, 8, 16, 32, 64]
+    t = [3600.0 * h for h in hours]
+    grind(g, classes, cond, m0, t)
+    walls, cpus = [], []
+    for _ in range(5):
+        w0, c0 = time.perf_counter(), time.process_time()
+        grind(g, classes, cond, m0, t)
+        walls.append(time.perf_counter() - w0)
+        cpus.append(time.process_time() - c0)
+    out = {"classes": len(classes), "times": len(t), "wall_s": min(walls), "cpu_s": min(cpus)}
+    print(f"\n10. Population balance: {len(classes)} classes, {len(t)} times 0-64 h: "
+          f"{1e3 * out['wall_s']:.1f} ms wall, {1e3 * out['cpu_s']:.1f} ms CPU (best of 5)")
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="short run for CI (< 2 min)")
     ap.add_argument("--only", choices=("reference", "scaling", "recording", "sweep", "dense", "presets", "trajectory",
-                                       "signals"),
+                                       "signals", "grinding"),
                     help="run one section")
     ap.add_argument("--skip-million", action="store_true", help="dense beds: skip the taimill run of 10⁶ balls")
     ap.add_argument("--json", type=Path, metavar="FILE", help="write every number to FILE")
@@ -1352,6 +1380,8 @@ def main():
         report["trajectory"] = trajectory_section(1.0 if args.quick else QUICK_DURATION)
     if args.only in (None, "signals") and not args.quick:
         report["signals"] = signals_section()
+    if args.only in (None, "grinding"):
+        report["grinding"] = grinding_section()
     report["machine"]["load_end"] = os.getloadavg()
     report["total_wall_seconds"] = time.perf_counter() - t0
     print("\nload: %.2f %.2f %.2f at the end;" % report["machine"]["load_end"],

@@ -31,6 +31,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import ctypes
 import errno
@@ -268,6 +269,26 @@ def all_or_none(paths, folder=None):
         raise
 
 
+def settle_writes(timeout: float = 10.0) -> None:
+    """Wait (at most `timeout` s) until the writes zarr still has in flight have ended.
+    zarr writes in its own IO thread while the caller waits; an interrupt ends the
+    wait, not the writes, so a store deleted at once got files back from writes that
+    were still running (an interrupted `import` left a folder that blocked its rerun).
+    Nothing to wait for where zarr was never imported or has written nothing."""
+    sync = sys.modules.get("zarr.core.sync")
+    loop = getattr(sync, "loop", [None])[0]
+    if loop is None or loop.is_closed() or not loop.is_running():
+        return
+
+    async def rest():
+        others = [t for t in asyncio.all_tasks() if t is not asyncio.current_task()]
+        if others:
+            await asyncio.wait(others, timeout=timeout)
+
+    with contextlib.suppress(Exception):  # a loop stopped meanwhile: nothing is running on it
+        asyncio.run_coroutine_threadsafe(rest(), loop).result(timeout + 1)
+
+
 class Output:
     """One output path written by this process (module doc):
 
@@ -348,6 +369,7 @@ class Output:
         try:
             if err is None or self.committed:
                 return
+            settle_writes()  # writes an interrupt cut short end first: a store deleted under them got files back
             mine = self.build != self.path or not self.existed  # never an output resumed in place
             removed = mine and os.path.lexists(self.build) and not self.keep(self.build)
             if removed:

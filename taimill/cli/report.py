@@ -254,9 +254,12 @@ def _marked(out: Path) -> set[str]:
 
 def _mark(folder: Path, names, earlier=frozenset()) -> None:
     """Write REPORT_MARK in `folder`: the figures `names` and the `earlier` ones of the
-    folder it will be moved into."""
-    (folder / REPORT_MARK).write_text(json.dumps({"written_by": "taimill report", "figures": sorted(set(earlier) | set(names))},
-                                                 indent=1))
+    folder it will be moved into; flushed to disk like the figures."""
+    from taimill.store.output import whole_file
+
+    figures = sorted(set(earlier) | set(names))
+    with whole_file(folder / REPORT_MARK, "report list") as part:
+        part.write_text(json.dumps({"written_by": "taimill report", "figures": figures}, indent=1))
 
 
 def _is_sweep(path) -> bool:

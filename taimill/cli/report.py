@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -120,30 +121,42 @@ def cmd_report(a) -> int:
 
 class ReportFolder:
     """The figures of one report, drawn where they cannot mix with a report already in
-    `out`: in a folder beside it (OUT.partial-PID, store.output.partial_path), moved in
-    by `commit` once every one is drawn. An interrupt, a full disk or a figure that
-    fails leaves `out` as it was (no figure of the new report in it, none of the old
-    one replaced) and deletes the partial folder, so the same command simply runs again.
-    `out` is locked while it is written (store.output.OutputLock): a second report into
+    `out`: in a hidden folder inside it (OUT/.taimill-report.partial-PID), moved in by
+    `commit` once every one is drawn. An interrupt, a full disk or a figure that fails
+    leaves `out` as it was (no figure of the new report in it, none of the old one
+    replaced; a folder the report created is deleted) and deletes the partial folder,
+    so the same command simply runs again. Inside, not beside: `out` may be the current
+    folder, or one in a folder the user cannot write. `out` is locked while it is
+    written (OUT/.taimill-report.lock, store.output.OutputLock): a second report into
     the same folder is refused naming the first. Only the figures are moved in: the
     user's files in `out`, and figures of other formats, stay."""
 
     def __init__(self, out: Path):
         from taimill.store.output import OutputLock, partial_path
 
-        self.out, self.build = Path(out), partial_path(out)
-        self.lock = OutputLock(out)
+        self.out = Path(out)
+        self.base = self.out / ".taimill-report"  # the name the partial folder and the lock are made from
+        self.build = partial_path(self.base)
+        self.lock = OutputLock(self.base)
         self.existed = os.path.lexists(out)
 
     def __enter__(self) -> "ReportFolder":
-        from taimill.store.output import remove
+        from taimill.errors import StoreError, StoreWriteError
+        from taimill.store.output import refused, remove
 
-        self.lock.acquire()
+        try:
+            self.out.mkdir(parents=True, exist_ok=True)
+            self.lock.acquire()
+        except StoreError as err:  # in use, or no lock file: named by the folder
+            self._remove_new_folder()
+            raise type(err)(self.out, err.key, err.allowed) from None
+        except OSError as err:
+            raise StoreWriteError(self.out, "figures", f"cannot create the folder ({refused(err)})") from None
         try:
             remove(self.build)
-            self.build.mkdir(parents=True)
-        except BaseException:
-            self.lock.release()
+            self.build.mkdir()
+        except BaseException as err:
+            self.__exit__(type(err), err, None)
             raise
         return self
 
@@ -159,7 +172,6 @@ class ReportFolder:
         _mark(self.build, names, _marked(self.out) - set(drop))  # a full disk stops here, before any move
         hold()
         try:
-            self.out.mkdir(parents=True, exist_ok=True)
             for name in drop:
                 os.unlink(self.out / name)
             for name in [*names, REPORT_MARK]:
@@ -173,7 +185,7 @@ class ReportFolder:
         """Partial folders of reports into `out` that were killed (kill -9): deleted."""
         from taimill.store.output import leftovers, remove
 
-        for q in leftovers(self.out):
+        for q in leftovers(self.base):
             if q.is_dir() and all(_report_file(e.name) for e in q.iterdir()):
                 try:
                     remove(q)
@@ -185,26 +197,27 @@ class ReportFolder:
     def kept(self) -> str:
         return f"{self.out} is unchanged" if self.existed else f"nothing was written to {self.out}"
 
-    def __exit__(self, exc_type, err, tb):
-        import contextlib
+    def _remove_new_folder(self) -> None:
+        if not self.existed:
+            with contextlib.suppress(OSError):
+                os.rmdir(self.out)  # created here and empty again
 
+    def __exit__(self, exc_type, err, tb):
         from taimill.errors import Interrupted, StoreWriteError
         from taimill.store.output import refused, remove
 
-        try:
-            with contextlib.suppress(OSError):
-                remove(self.build)
-            if not self.existed and err is not None:
-                with contextlib.suppress(OSError):
-                    os.rmdir(self.out)  # created by commit and left empty
-            if isinstance(err, KeyboardInterrupt):
-                raise Interrupted(f"{str(err) or 'interrupted'}; {self.kept()}", getattr(err, "exit_code", 130)) from err
-            if isinstance(err, OSError):
-                raise StoreWriteError(self.out, "figures", f"write failed ({refused(err)}); {self.kept()}") from err
-            if isinstance(err, StoreWriteError):  # a figure's whole_file, named by its place in the partial folder
-                raise StoreWriteError(self.out, err.key, f"{err.allowed.split('; ')[0]}; {self.kept()}") from err
-        finally:
-            self.lock.release()
+        with contextlib.suppress(OSError):
+            remove(self.build)
+        self.lock.release()
+        if err is None:
+            return
+        self._remove_new_folder()
+        if isinstance(err, KeyboardInterrupt):
+            raise Interrupted(f"{str(err) or 'interrupted'}; {self.kept()}", getattr(err, "exit_code", 130)) from err
+        if isinstance(err, OSError):
+            raise StoreWriteError(self.out, "figures", f"write failed ({refused(err)}); {self.kept()}") from err
+        if isinstance(err, StoreWriteError):  # a figure's whole_file, named by its place in the partial folder
+            raise StoreWriteError(self.out, err.key, f"{err.allowed.split('; ')[0]}; {self.kept()}") from err
 
 
 def _report_file(name: str) -> bool:

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from taimill.store.output import Output, OutputLock
+from taimill.store.output import Output
 
 ROOT = Path(__file__).resolve().parent.parent
 PRESET = "presets/p4-cy-steel.toml"
@@ -139,11 +139,16 @@ def case(tmp_path_factory) -> Path:
     return case
 
 
+def drawn(out: Path, new: bool = True) -> list[str]:
+    """The figures a report into `out` has drawn so far: in its partial folder inside
+    `out`, or (`new`, the code before it had one) in `out` itself."""
+    return glob.glob(f"{out}/.taimill-report.partial-*/*.png") + (glob.glob(f"{out}/*.png") if new else [])
+
+
 # ---------------------------------------------------------------- SIGTERM
 def test_sigterm_during_a_new_report_leaves_nothing_and_the_rerun_works(run_store, tmp_path):
     out = tmp_path / "figs"
-    drawn = lambda: glob.glob(f"{out}*/*.png")  # noqa: E731 (in the folder or in one beside it)
-    res = terminate_when(("report", run_store, "--out", out), drawn)
+    res = terminate_when(("report", run_store, "--out", out), lambda: drawn(out))
     assert_terminated(res, f"nothing was written to {out}")
     assert list(tmp_path.iterdir()) == []  # no figure, no partial folder, no lock
     res = taimill("report", run_store, "--out", out)
@@ -158,9 +163,8 @@ def test_sigterm_during_report_overwrite_keeps_the_old_report_whole(run_store, t
     before = contents(out)
     stamps = {p: p.stat().st_mtime_ns for p in out.iterdir()}
 
-    def started():  # a figure drawn beside the folder, or one replaced in it
-        return glob.glob(f"{out}.partial-*/*.png") or any(p.stat().st_mtime_ns != t for p, t in stamps.items()
-                                                          if p.exists())
+    def started():  # a figure drawn in its partial folder, or one replaced in the folder
+        return drawn(out, new=False) or any(p.stat().st_mtime_ns != t for p, t in stamps.items() if p.exists())
 
     res = terminate_when(("report", run_store, "--out", out, "--overwrite"), started)
     assert_terminated(res, f"{out} is unchanged")
@@ -170,11 +174,20 @@ def test_sigterm_during_report_overwrite_keeps_the_old_report_whole(run_store, t
 
 def test_a_second_report_into_the_same_folder_is_refused(run_store, tmp_path):
     out = tmp_path / "figs"
-    with OutputLock(out):
-        res = taimill("report", run_store, "--out", out)
+    first = subprocess.Popen(command("report", run_store, "--out", out), cwd=ROOT, env=ENV, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    try:
+        while not drawn(out):
+            assert first.poll() is None, first.communicate()
+            time.sleep(0.02)
+        first.send_signal(signal.SIGSTOP)  # holds the folder until the second has tried
+        res = taimill("report", run_store, "--out", out, "--overwrite")
+    finally:
+        first.send_signal(signal.SIGCONT)
+        first.communicate(timeout=120)
     line = one_line(res.stderr)
-    assert res.returncode == 2 and "in use" in line and f"pid {os.getpid()}" in line, line
-    assert not out.exists()
+    assert res.returncode == 2 and f"{out}: in use: pid {first.pid} " in line, line
+    assert first.returncode == 0, first.stderr
 
 
 def test_sigterm_during_record_overwrite_keeps_the_old_recording(run_store, tmp_path):

@@ -32,6 +32,7 @@
 from __future__ import annotations
 
 import asyncio
+import atexit
 import contextlib
 import ctypes
 import errno
@@ -289,6 +290,31 @@ def settle_writes(timeout: float = 10.0) -> None:
         asyncio.run_coroutine_threadsafe(rest(), loop).result(timeout + 1)
 
 
+ZARR_EXIT_SECONDS = 5.0  #: how long the exit waits for zarr's IO thread to stop
+_zarr_exit = {"registered": False}
+
+
+def join_zarr_at_exit() -> None:
+    """At exit, stop zarr's IO thread and wait for it (ZARR_EXIT_SECONDS) before zarr's
+    own clean-up does: that one waits 0.2 s, and on a busy machine then prints "Cannot
+    close a running event loop" with a traceback under the command's one line.
+    Registered once zarr is imported, after zarr's own (atexit runs the last first)."""
+    sync = sys.modules.get("zarr.core.sync")
+    if sync is None or _zarr_exit["registered"]:
+        return
+
+    def stop():
+        loop, thread = getattr(sync, "loop", [None])[0], getattr(sync, "iothread", [None])[0]
+        if loop is None or thread is None or loop.is_closed():
+            return
+        with contextlib.suppress(RuntimeError):
+            loop.call_soon_threadsafe(loop.stop)
+        thread.join(ZARR_EXIT_SECONDS)
+
+    atexit.register(stop)
+    _zarr_exit["registered"] = True
+
+
 class Output:
     """One output path written by this process (module doc):
 
@@ -321,6 +347,7 @@ class Output:
         self.replacing = self.existed = self.committed = False
 
     def __enter__(self) -> "Output":
+        join_zarr_at_exit()  # a store's writer has imported zarr by now
         if self.overwrite or self.reuse:  # before the lock: a refusal leaves no trace beside a user's file
             check_replaceable(self.path, self.option, self.kind, self.ours, inputs=self.inputs)
         self.lock.acquire()

@@ -252,11 +252,10 @@ def test_an_interrupted_output_waits_for_the_writes_in_flight(tmp_path):
         (store / "c").mkdir(parents=True)
         (store / "c" / "0").write_bytes(b"chunk")
 
-    with pytest.raises(KeyboardInterrupt):
-        with Output(out, ours=lambda _: False, keep=lambda _: False, what="run") as o:
-            zarr.open_group(o.build, mode="w")
-            write = asyncio.run_coroutine_threadsafe(slow_write(o.build), _get_loop())
-            raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt), Output(out, ours=lambda _: False, keep=lambda _: False, what="run") as o:
+        zarr.open_group(o.build, mode="w")
+        write = asyncio.run_coroutine_threadsafe(slow_write(o.build), _get_loop())
+        raise KeyboardInterrupt
     write.result(timeout=10)
     assert not out.exists()
 
@@ -317,10 +316,9 @@ def test_jars_new_overwrite_on_a_full_disk_keeps_the_old_jar(full_disk):
     (full_disk / "filler").unlink()
     assert taimill("jars", "new", "mine", "--volume", 250, "--diameter", 75, "--out", out).returncode == 0
     before = out.read_bytes()
-    with open(full_disk / "filler", "wb") as f:
-        with pytest.raises(OSError):
-            f.write(b"\0" * (1 << 20))
-            f.flush()
+    with open(full_disk / "filler", "wb") as f, pytest.raises(OSError):  # full again
+        f.write(b"\0" * (1 << 20))
+        f.flush()
     res = taimill("jars", "new", "mine", "--volume", 500, "--diameter", 75, "--out", out, "--overwrite")
     assert res.returncode == 5 and f"{out} is unchanged" in one_line(res.stderr), res.stderr
     assert out.read_bytes() == before

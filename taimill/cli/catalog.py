@@ -172,6 +172,7 @@ def cmd_jars_new(a) -> int:
     from taimill.errors import ConfigError
     from taimill.model.files import check_output
     from taimill.model.jars import BUILT_MARK, cylinder_jar_text, load_jar
+    from taimill.store.output import whole_file
 
     if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]*", a.name) or a.name.endswith(".toml"):
         raise ConfigError("command line", "NAME", a.name, "a jar name: letters, digits, '.', '_' and '-', without .toml")
@@ -185,10 +186,8 @@ def cmd_jars_new(a) -> int:
 
     out = check_output(a.out or f"{a.name}.toml", "--out", overwrite=a.overwrite, suffixes=(".toml",),
                        what="jar file", ours=ours)
-    try:
-        out.write_text(text, encoding="utf-8")
-    except OSError as err:
-        raise ConfigError("command line", "--out", str(out), f"cannot write: {err.strerror or err}") from None
+    with whole_file(out, "jar file") as part:  # a full disk leaves no empty file that blocks the retry: exit 5
+        part.write_text(text, encoding="utf-8")
     jar = load_jar(str(out), "command line")
     print(f"{out}: {jar.description}, height {jar.height * 1e3:.4g} mm, volume {jar.volume * 1e6:.4g} ml; "
           f"use it with --jar {out} or jar = \"{out}\" in a preset")

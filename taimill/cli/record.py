@@ -61,6 +61,8 @@ def replay(store, sink) -> None:
     """Stream a `RunStore`'s tables into `sink` as a live run would (module doc)."""
     import numpy as np
 
+    from taimill.runs.signals import check
+
     frames, events, energy = store.frames, store.events, store.energy
     t = frames["time"]
     ends = events["t_start"] + events["duration"]
@@ -69,6 +71,7 @@ def replay(store, sink) -> None:
     try:
         begin, done = 0, -np.inf
         while begin < len(t):
+            check()  # an interrupt rerun's code swallowed (runs.signals) stops the replay here
             stop = int(np.searchsorted(t, t[begin] + REPLAY_SECONDS, side="right"))
             last = t[stop - 1] if stop < len(t) else np.inf  # the last block takes every event left
             pick = (ends > done) & (ends <= last)

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -83,7 +84,6 @@ def cmd_analyse(a) -> int:
 def cmd_report(a) -> int:
     from taimill.errors import ConfigError
     from taimill.model.files import check_output
-    from taimill.store.output import all_or_none
 
     _check_options(a)
     out = a.out or str(Path(a.run)).rstrip("/").removesuffix(".zarr") + "-report"
@@ -98,11 +98,9 @@ def cmd_report(a) -> int:
             table = open_sweep(a.run).table()
         except ConfigError:  # also StoreError: said by report_sweep, after the --out checks
             table = {}
-        stems = figure_stems(table, bool(a.overlay))
-        _refuse_existing(out, stems, a)
-        with all_or_none([out / f"{s}.{a.format}" for s in stems] + [out / REPORT_MARK], out):
-            paths = report_sweep(a.run, out, a.format, overlay=a.overlay)
-            _mark(out, paths)
+        _refuse_existing(out, figure_stems(table, bool(a.overlay)), a)
+        with ReportFolder(out) as folder:
+            paths = folder.commit(report_sweep(a.run, folder.build, a.format, overlay=a.overlay))
     else:
         from taimill.figures.report import FIGURES, left_out, left_out_text, write_report
 
@@ -111,10 +109,9 @@ def cmd_report(a) -> int:
         _refuse_existing(out, list(FIGURES), a)
         analysis = _open(a)
         left = left_out(analysis)  # figures with nothing to draw (no stress event, say): named in one line
-        with all_or_none([out / f"{s}.{a.format}" for s in FIGURES] + [out / REPORT_MARK], out):  # a failure: no figure left
-            paths = write_report(analysis, out, a.format, leave_out=left)
-            stale = _drop_stale(out, [f"{s}.{a.format}" for s in left])
-            _mark(out, paths, drop=stale)
+        with ReportFolder(out) as folder:
+            built = write_report(analysis, folder.build, a.format, leave_out=left)
+            paths = folder.commit(built, stale=[f"{s}.{a.format}" for s in left])
         if left:
             print(f"taimill: note: {left_out_text(left)}", file=sys.stderr)
     for p in paths:
@@ -122,19 +119,121 @@ def cmd_report(a) -> int:
     return 0
 
 
-def _drop_stale(out: Path, names) -> list[str]:
-    """Delete this report's figures an earlier report left in `out` under the names of
-    figures this one leaves out: beside the new ones they would pass for this run's.
-    Only those REPORT_MARK lists (_refuse_existing let --overwrite replace only ours);
-    returns the names deleted."""
+class ReportFolder:
+    """The figures of one report, drawn where they cannot mix with a report already in
+    `out`: in a hidden folder inside it (OUT/.taimill-report.partial-PID), moved in by
+    `commit` once every one is drawn. An interrupt, a full disk or a figure that fails
+    leaves `out` as it was (no figure of the new report in it, none of the old one
+    replaced; a folder the report created is deleted) and deletes the partial folder,
+    so the same command simply runs again. Inside, not beside: `out` may be the current
+    folder, or one in a folder the user cannot write. `out` is locked while it is
+    written (OUT/.taimill-report.lock, store.output.OutputLock): a second report into
+    the same folder is refused naming the first. Only the figures are moved in: the
+    user's files in `out`, and figures of other formats, stay."""
+
+    def __init__(self, out: Path):
+        from taimill.store.output import OutputLock, partial_path
+
+        self.out = Path(out)
+        self.base = self.out / ".taimill-report"  # the name the partial folder and the lock are made from
+        self.build = partial_path(self.base)
+        self.lock = OutputLock(self.base)
+        self.existed = os.path.lexists(out)
+
+    def __enter__(self) -> "ReportFolder":
+        from taimill.errors import StoreError, StoreWriteError
+        from taimill.store.output import refused, remove
+
+        try:
+            self.out.mkdir(parents=True, exist_ok=True)
+            self.lock.acquire()
+        except StoreError as err:  # in use, or no lock file: named by the folder
+            self._remove_new_folder()
+            raise type(err)(self.out, err.key, err.allowed) from None
+        except OSError as err:
+            raise StoreWriteError(self.out, "figures", f"cannot create the folder ({refused(err)})") from None
+        try:
+            remove(self.build)
+            self.build.mkdir()
+        except BaseException as err:
+            self.__exit__(type(err), err, None)
+            raise
+        return self
+
+    def commit(self, built, stale=()) -> list[Path]:
+        """Move the figures `built` (paths in the partial folder) into `out` with the
+        updated REPORT_MARK, delete this report's earlier figures of the names `stale`
+        (_stale), and return where the figures are now. SIGTERM and Ctrl-C wait for
+        the few renames (runs.signals.hold): a report is in `out` whole or not at all."""
+        from taimill.runs.signals import drop_hold, hold
+
+        names = [Path(p).name for p in built]
+        drop = _stale(self.out, stale)
+        _mark(self.build, names, _marked(self.out) - set(drop))  # a full disk stops here, before any move
+        hold()
+        try:
+            for name in drop:
+                os.unlink(self.out / name)
+            for name in [*names, REPORT_MARK]:
+                os.replace(self.build / name, self.out / name)
+        finally:
+            drop_hold()  # the report is complete: an interrupt during the renames ends nothing
+        self._clear_leftovers()
+        return [self.out / n for n in names]
+
+    def _clear_leftovers(self) -> None:
+        """Partial folders of reports into `out` that were killed (kill -9): deleted."""
+        from taimill.store.output import leftovers, remove
+
+        for q in leftovers(self.base):
+            if q.is_dir() and all(_report_file(e.name) for e in q.iterdir()):
+                try:
+                    remove(q)
+                except OSError:
+                    continue
+                print(f"taimill: removed {q}, left by an earlier report into {self.out} that did not finish",
+                      file=sys.stderr)
+
+    def kept(self) -> str:
+        return f"{self.out} is unchanged" if self.existed else f"nothing was written to {self.out}"
+
+    def _remove_new_folder(self) -> None:
+        if not self.existed:
+            with contextlib.suppress(OSError):
+                os.rmdir(self.out)  # created here and empty again
+
+    def __exit__(self, exc_type, err, tb):
+        from taimill.errors import Interrupted, StoreWriteError
+        from taimill.store.output import refused, remove
+
+        with contextlib.suppress(OSError):
+            remove(self.build)
+        self.lock.release()
+        if err is None:
+            return
+        self._remove_new_folder()
+        if isinstance(err, KeyboardInterrupt):
+            raise Interrupted(f"{str(err) or 'interrupted'}; {self.kept()}", getattr(err, "exit_code", 130)) from err
+        if isinstance(err, OSError):
+            raise StoreWriteError(self.out, "figures", f"write failed ({refused(err)}); {self.kept()}") from err
+        if isinstance(err, StoreWriteError):  # a figure's whole_file, named by its place in the partial folder
+            raise StoreWriteError(self.out, err.key, f"{err.allowed.split('; ')[0]}; {self.kept()}") from err
+
+
+def _report_file(name: str) -> bool:
+    """A name a report writes in its partial folder: a figure (or its temporary file), REPORT_MARK."""
+    return name.endswith((".png", ".svg", ".pdf")) or name == REPORT_MARK
+
+
+def _stale(out: Path, names) -> list[str]:
+    """Of `names`, this report's figures an earlier report left in `out`: the figures
+    this one leaves out, which beside the new ones would pass for this run's. Only those
+    REPORT_MARK lists (_refuse_existing let --overwrite replace only ours); the commit
+    deletes them."""
     from taimill.figures import is_figure
-    from taimill.store.output import remove
 
     ours = _marked(out)
-    stale = [n for n in names if n in ours and os.path.lexists(out / n) and is_figure(out / n)]
-    for n in stale:
-        remove(out / n)
-    return stale
+    return [n for n in names if n in ours and os.path.lexists(out / n) and is_figure(out / n)]
 
 
 def _refuse_existing(out: Path, stems, a) -> None:
@@ -166,14 +265,14 @@ def _marked(out: Path) -> set[str]:
         return set()
 
 
-def _mark(out: Path, paths, drop=()) -> None:
-    """Add the figures just written to REPORT_MARK, less those deleted (`drop`);
-    written whole, then renamed in."""
+def _mark(folder: Path, names, earlier=frozenset()) -> None:
+    """Write REPORT_MARK in `folder`: the figures `names` and the `earlier` ones of the
+    folder it will be moved into; flushed to disk like the figures."""
     from taimill.store.output import whole_file
 
-    names = sorted((_marked(out) - set(drop)) | {Path(p).name for p in paths})
-    with whole_file(out / REPORT_MARK, "report list") as part:
-        part.write_text(json.dumps({"written_by": "taimill report", "figures": names}, indent=1))
+    figures = sorted(set(earlier) | set(names))
+    with whole_file(folder / REPORT_MARK, "report list") as part:
+        part.write_text(json.dumps({"written_by": "taimill report", "figures": figures}, indent=1))
 
 
 def _is_sweep(path) -> bool:

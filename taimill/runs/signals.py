@@ -9,7 +9,10 @@
   (Taichi's kernel decorator wraps a source lookup in a bare `except:`, run at every
   import of a module that defines kernels) would otherwise lose a Ctrl-C that lands
   there, and a sweep interrupted 1 s in ran to its end. `check()` raises it again; the
-  run and sweep loops call it between launches and while they wait.
+  run and sweep loops call it between launches and while they wait, `record` between
+  blocks. One raised inside a `__del__` (rerun's recording streams have one) cannot
+  leave it: Python prints it as "Exception ignored in" with a traceback, which the block
+  keeps quiet (`_quiet_unraisable`), the interrupt being remembered.
 - `die_with_parent(pid)`: a sweep's worker process dies with the process that started
   it, also when that one is killed with SIGKILL and can clean nothing up. On Linux the
   kernel does it (prctl PR_SET_PDEATHSIG); elsewhere a thread polls os.getppid().
@@ -81,6 +84,17 @@ def drop_hold() -> None:
     _held["depth"], _held["pending"] = 0, None
 
 
+def _quiet_unraisable(before):
+    """sys.unraisablehook that drops an interrupt raised where it cannot leave (a
+    `__del__`): it is remembered and `check()` raises it again (module doc)."""
+
+    def hook(info):
+        if not isinstance(info.exc_value, KeyboardInterrupt):
+            before(info)
+
+    return hook
+
+
 @contextlib.contextmanager
 def sigterm_interrupts():
     """SIGTERM raises Interrupted, and Ctrl-C KeyboardInterrupt, inside the block (module
@@ -94,9 +108,13 @@ def sigterm_interrupts():
         ours[signal.SIGTERM] = signal.signal(signal.SIGTERM, _on_sigterm)
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         ours[signal.SIGINT] = signal.signal(signal.SIGINT, _on_sigint)
+    unraisable = sys.unraisablehook
+    if ours:
+        sys.unraisablehook = _quiet_unraisable(unraisable)
     try:
         yield
     finally:
+        sys.unraisablehook = unraisable
         for signum, before in ours.items():
             signal.signal(signum, before)
         drop_hold()

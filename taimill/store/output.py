@@ -31,6 +31,8 @@
 
 from __future__ import annotations
 
+import asyncio
+import atexit
 import contextlib
 import ctypes
 import errno
@@ -268,6 +270,51 @@ def all_or_none(paths, folder=None):
         raise
 
 
+def settle_writes(timeout: float = 10.0) -> None:
+    """Wait (at most `timeout` s) until the writes zarr still has in flight have ended.
+    zarr writes in its own IO thread while the caller waits; an interrupt ends the
+    wait, not the writes, so a store deleted at once got files back from writes that
+    were still running (an interrupted `import` left a folder that blocked its rerun).
+    Nothing to wait for where zarr was never imported or has written nothing."""
+    sync = sys.modules.get("zarr.core.sync")
+    loop = getattr(sync, "loop", [None])[0]
+    if loop is None or loop.is_closed() or not loop.is_running():
+        return
+
+    async def rest():
+        others = [t for t in asyncio.all_tasks() if t is not asyncio.current_task()]
+        if others:
+            await asyncio.wait(others, timeout=timeout)
+
+    with contextlib.suppress(Exception):  # a loop stopped meanwhile: nothing is running on it
+        asyncio.run_coroutine_threadsafe(rest(), loop).result(timeout + 1)
+
+
+ZARR_EXIT_SECONDS = 5.0  #: how long the exit waits for zarr's IO thread to stop
+_zarr_exit = {"registered": False}
+
+
+def join_zarr_at_exit() -> None:
+    """At exit, stop zarr's IO thread and wait for it (ZARR_EXIT_SECONDS) before zarr's
+    own clean-up does: that one waits 0.2 s, and on a busy machine then prints "Cannot
+    close a running event loop" with a traceback under the command's one line.
+    Registered once zarr is imported, after zarr's own (atexit runs the last first)."""
+    sync = sys.modules.get("zarr.core.sync")
+    if sync is None or _zarr_exit["registered"]:
+        return
+
+    def stop():
+        loop, thread = getattr(sync, "loop", [None])[0], getattr(sync, "iothread", [None])[0]
+        if loop is None or thread is None or loop.is_closed():
+            return
+        with contextlib.suppress(RuntimeError):
+            loop.call_soon_threadsafe(loop.stop)
+        thread.join(ZARR_EXIT_SECONDS)
+
+    atexit.register(stop)
+    _zarr_exit["registered"] = True
+
+
 class Output:
     """One output path written by this process (module doc):
 
@@ -300,6 +347,7 @@ class Output:
         self.replacing = self.existed = self.committed = False
 
     def __enter__(self) -> "Output":
+        join_zarr_at_exit()  # a store's writer has imported zarr by now
         if self.overwrite or self.reuse:  # before the lock: a refusal leaves no trace beside a user's file
             check_replaceable(self.path, self.option, self.kind, self.ours, inputs=self.inputs)
         self.lock.acquire()
@@ -348,6 +396,7 @@ class Output:
         try:
             if err is None or self.committed:
                 return
+            settle_writes()  # writes an interrupt cut short end first: a store deleted under them got files back
             mine = self.build != self.path or not self.existed  # never an output resumed in place
             removed = mine and os.path.lexists(self.build) and not self.keep(self.build)
             if removed:

@@ -1,6 +1,14 @@
-"""Hand-built mills for validation tests: one or two balls, no drive, chosen laws."""
+"""Hand-built mills for validation tests (one or two balls, no drive, chosen laws), and
+the small, full or read-only disks of the fault tests (`tmpfs`)."""
 
 from __future__ import annotations
+
+import contextlib
+import os
+import subprocess
+from pathlib import Path
+
+import pytest
 
 from taimill.model.contact_sets import NormalLaw, pair_contact
 from taimill.model import laws as laws_np
@@ -50,3 +58,28 @@ def numbers_without_unit(summary: dict) -> list[str]:
 
     walk({k: v for k, v in summary.items() if k != "units"}, "", None, False)
     return missing
+
+
+@contextlib.contextmanager
+def tmpfs(folder, *options, free_bytes: int | None = None):
+    """A tmpfs mounted at `folder` (created) with mount `options` ("size=2m", "ro"): a
+    small or full disk (`free_bytes`: filled but for about that many bytes) or a read-only
+    folder (the tests run as root, who ignores chmod). Skips the test where mounting is
+    not allowed; unmounted on the way out."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    res = subprocess.run(["mount", "-t", "tmpfs", "-o", ",".join(options) or "defaults", "tmpfs", str(folder)],
+                         capture_output=True, text=True, check=False)
+    if res.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here ({res.stderr.strip() or res.returncode})")
+    try:
+        if free_bytes is not None:
+            stat = os.statvfs(folder)
+            with open(folder / "filler", "wb") as f:
+                try:
+                    f.write(b"\0" * max(0, stat.f_bavail * stat.f_frsize - free_bytes))
+                except OSError:
+                    pass
+        yield folder
+    finally:
+        subprocess.run(["umount", "-l", str(folder)], check=False)

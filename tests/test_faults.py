@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 import zarr
 
+from helpers import tmpfs
 from inprocess import main
 from taimill.analysis.run import analyse
 from taimill.errors import StoreError
@@ -380,15 +381,8 @@ def test_overwrite_with_an_unreachable_scheduler_keeps_the_sweep(whole_sweep, tm
 # ---------------------------------------------------------------- full disk
 @pytest.fixture
 def small_disk(tmp_path):
-    mnt = tmp_path / "disk"
-    mnt.mkdir()
-    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mnt)], capture_output=True, text=True)
-    if res.returncode != 0:
-        pytest.skip(f"cannot mount a small tmpfs here ({res.stderr.strip() or res.returncode})")
-    try:
+    with tmpfs(tmp_path / "disk", "size=2m") as mnt:
         yield mnt
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)], check=False)
 
 
 def test_a_full_disk_gives_one_line_and_a_readable_partial_store(reference, small_disk):

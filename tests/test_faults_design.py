@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import tmpfs
 
 ROOT = Path(__file__).resolve().parent.parent
 ENV = {**os.environ, "PYTHONPATH": str(ROOT)}  # the subprocesses import this checkout's taimill
@@ -162,16 +163,8 @@ def test_two_designers_started_together_one_runs_the_other_is_refused(tmp_path):
 # ------------------------------------------------------------------ a full disk, a read-only folder
 @pytest.fixture
 def small_disk(tmp_path):
-    mnt = tmp_path / "disk"
-    mnt.mkdir()
-    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mnt)], capture_output=True, text=True,
-                         check=False)
-    if res.returncode != 0:
-        pytest.skip(f"cannot mount a small tmpfs here ({res.stderr.strip() or res.returncode})")
-    try:
+    with tmpfs(tmp_path / "disk", "size=1m") as mnt:
         yield mnt
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)], check=False)
 
 
 # free space left: 60 kB fills the database while the study is created (SQLite's

@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import tmpfs
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "outcome"
@@ -208,16 +209,8 @@ def test_a_bad_figure_path_is_refused_before_the_fit(work, argv, words):
 @pytest.fixture
 def read_only(tmp_path):
     """A read-only folder: a read-only tmpfs (root ignores chmod)."""
-    mnt = tmp_path / "ro"
-    mnt.mkdir()
-    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=1m", "tmpfs", str(mnt)], capture_output=True, text=True,
-                         check=False)
-    if res.returncode != 0:
-        pytest.skip(f"cannot mount a read-only tmpfs here ({res.stderr.strip() or res.returncode})")
-    try:
+    with tmpfs(tmp_path / "ro", "ro", "size=1m") as mnt:
         yield mnt
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)], check=False)
 
 
 @pytest.mark.parametrize("option", ["--out", "--figure", "--stress-figure"])
@@ -238,18 +231,8 @@ def test_predict_refuses_a_read_only_figure_folder(work, read_only):
 @pytest.fixture
 def full_disk(tmp_path):
     """A 2 MB tmpfs filled but for about 12 kB: room for a fit file, not for a figure."""
-    mnt = tmp_path / "disk"
-    mnt.mkdir()
-    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mnt)], capture_output=True, text=True,
-                         check=False)
-    if res.returncode != 0:
-        pytest.skip(f"cannot mount a small tmpfs here ({res.stderr.strip() or res.returncode})")
-    try:
-        free = os.statvfs(mnt).f_bavail * os.statvfs(mnt).f_frsize
-        (mnt / "filler").write_bytes(b"\0" * (free - 12 * 1024))
+    with tmpfs(tmp_path / "disk", "size=2m", free_bytes=12 * 1024) as mnt:
         yield mnt
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)], check=False)
 
 
 def test_a_full_disk_is_exit_5_one_line_and_leaves_nothing_half_written(work, full_disk):

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import tmpfs
 
 from taimill.store.output import Output
 
@@ -76,38 +77,17 @@ def contents(folder: Path) -> dict:
     return {p.relative_to(folder): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
-def mount(folder: Path, *options):
-    folder.mkdir()
-    res = subprocess.run(["mount", "-t", "tmpfs", "-o", ",".join(options), "tmpfs", str(folder)], capture_output=True,
-                         text=True)
-    if res.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here ({res.stderr.strip() or res.returncode})")
-
-
 @pytest.fixture
 def full_disk(tmp_path):
     """A tmpfs with no room left (a file fills it)."""
-    disk = tmp_path / "disk"
-    mount(disk, "size=64k")
-    try:
-        with open(disk / "filler", "wb") as f:
-            try:
-                f.write(b"\0" * (1 << 20))
-            except OSError:
-                pass
+    with tmpfs(tmp_path / "disk", "size=64k", free_bytes=0) as disk:
         yield disk
-    finally:
-        subprocess.run(["umount", "-l", str(disk)], check=False)
 
 
 @pytest.fixture
 def read_only(tmp_path):
-    disk = tmp_path / "ro"
-    mount(disk, "ro")
-    try:
+    with tmpfs(tmp_path / "ro", "ro") as disk:
         yield disk
-    finally:
-        subprocess.run(["umount", "-l", str(disk)], check=False)
 
 
 @pytest.fixture(scope="module")

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import tmpfs
 
 from taimill.outcome import sizes_fit as sf
 from taimill.outcome.condition import read_file
@@ -275,18 +276,8 @@ def test_sigterm_during_the_fit_keeps_the_old_fit_and_leaves_nothing_that_blocks
 @pytest.fixture
 def full_disk(tmp_path):
     """A 2 MB tmpfs filled but for about 12 kB: room for a fit file, not for a figure."""
-    mnt = tmp_path / "disk"
-    mnt.mkdir()
-    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mnt)], capture_output=True, text=True,
-                         check=False)
-    if res.returncode != 0:
-        pytest.skip(f"cannot mount a small tmpfs here ({res.stderr.strip() or res.returncode})")
-    try:
-        free = os.statvfs(mnt).f_bavail * os.statvfs(mnt).f_frsize
-        (mnt / "filler").write_bytes(b"\0" * (free - 12 * 1024))
+    with tmpfs(tmp_path / "disk", "size=2m", free_bytes=12 * 1024) as mnt:
         yield mnt
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)], check=False)
 
 
 def test_a_full_disk_is_exit_5_one_line_and_leaves_nothing_half_written(fitted, full_disk):

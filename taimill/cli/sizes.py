@@ -167,30 +167,6 @@ def _hours(text: str) -> list[float]:
     return sorted(set(hours))
 
 
-def time_to_x90(g, classes, cond, m0, target_m: float, hours_max: float = 10_000.0) -> float:
-    """s until x90 falls to `target_m` (bisection in log time; inf if not by hours_max)."""
-    from taimill.outcome.grinding import grind, passing, quantile_size
-
-    def x90(t):
-        v = quantile_size(classes, passing(classes, grind(g, classes, cond, m0, [t])), 0.9)[0]
-        return 0.0 if math.isnan(v) else v  # nan: below the finest edge
-
-    if x90(0.0) <= target_m:
-        return 0.0
-    hi = hours_max * 3600.0
-    if x90(hi) > target_m:
-        return math.inf
-    lo = 1.0
-    if x90(lo) <= target_m:
-        return lo
-    for _ in range(60):
-        mid = math.sqrt(lo * hi)
-        lo, hi = (mid, hi) if x90(mid) > target_m else (lo, mid)
-        if hi / lo < 1.0001:
-            break
-    return hi
-
-
 def cmd_predict(a) -> int:
     from taimill.errors import ConfigError
 
@@ -212,7 +188,15 @@ def _predict_params(a) -> int:
     from taimill.cli.kinetics import _conditions, _expand
     from taimill.errors import ConfigError
     from taimill.model.files import reads
-    from taimill.outcome.grinding import SizeClasses, feed, grind, passing, quantile_size, selection
+    from taimill.outcome.grinding import (
+        SizeClasses,
+        feed,
+        grind,
+        passing,
+        quantile_size,
+        selection,
+        time_to_x90,
+    )
 
     with reads():
         g = read_params(a.params)
@@ -324,7 +308,13 @@ def cmd_fit(a) -> int:
 
     from taimill.cli.calibrate import FIGURE_SUFFIXES
     from taimill.cli.common import plain
-    from taimill.cli.kinetics import _check_outputs, _commit, _condition_paths, _conditions, _writing
+    from taimill.cli.kinetics import (
+        _check_outputs,
+        _commit,
+        _condition_paths,
+        _conditions,
+        _writing,
+    )
     from taimill.errors import ConfigError
     from taimill.figures import is_figure
     from taimill.model.files import reads
@@ -399,12 +389,19 @@ def _predict_fit(a) -> int:
 
     from taimill.cli.calibrate import FIGURE_SUFFIXES
     from taimill.cli.common import plain
-    from taimill.cli.kinetics import _check_outputs, _commit, _condition_paths, _conditions, _expand, _writing
+    from taimill.cli.kinetics import (
+        _check_outputs,
+        _commit,
+        _condition_paths,
+        _conditions,
+        _expand,
+        _writing,
+    )
     from taimill.errors import ConfigError
     from taimill.figures import is_figure
     from taimill.model.files import reads
     from taimill.outcome import sizes_fit as sf
-    from taimill.outcome.grinding import feed
+    from taimill.outcome.grinding import HOURS_MAX, feed
     from taimill.store.output import Outputs
 
     with reads() as inputs:
@@ -483,5 +480,5 @@ def _predict_fit(a) -> int:
                 print(f"{r['condition']:<{w}}  {t / 3600:>9.4g}  "
                       f"{'[' + format(r['lower_s'] / 3600, '.4g') + ', ' + format(r['upper_s'] / 3600, '.4g') + ']':>21}")
             else:
-                print(f"{r['condition']:<{w}}  {'never':>9}  (not within {sf.HOURS_MAX:g} h)")
+                print(f"{r['condition']:<{w}}  {'never':>9}  (not within {HOURS_MAX:g} h)")
     return 0

@@ -44,7 +44,18 @@ import numpy as np
 from scipy import optimize, stats
 
 from taimill.errors import ConfigError
-from taimill.outcome.grinding import Austin, Grinding, SizeClasses, feed, passing, quantile_size, rate_matrix, selection
+from taimill.outcome.grinding import (
+    Austin,
+    Grinding,
+    SizeClasses,
+    feed,
+    passing,
+    quantile_size,
+    rates,
+    selection,
+    time_to_x90,
+)
+from taimill.outcome.grinding import evolve as propagate
 
 SIGMA_SHARE = 0.02  #: σ of a passing share without a sigma column: 2 % of it …
 SIGMA_FLOOR = 1e-3  #: … and at least 0.1 percentage point
@@ -65,7 +76,6 @@ SCAN = {"f_mat": np.logspace(-4, 2, 7), "xw_min": np.logspace(-4, 1, 6)}  #: the
 MAX_STEPS = 40  #: profile steps each way before the interval is called open
 CORRELATION_WARN = 0.99
 DECADES_WARN = 3.0
-HOURS_MAX = 10_000.0  #: the longest time to a target searched
 MARK = "# taimill sizes fit"  #: a sizes fit file's first line: what tells taimill's own from a user's file
 
 
@@ -117,38 +127,6 @@ def grinding(params: dict, measure: str, stress_only: bool) -> Grinding:
     p = {**HELD, **params}
     return Grinding(Austin(min(p["phi"], 1.0), p["gamma"], p["beta"]), capture_g=p["capture_g"], f_mat=p["f_mat"],
                     xw_min=p["xw_min"], k_att=p["k_att"], measure=measure, stress_only=stress_only)
-
-
-def rates(g: Grinding, classes: SizeClasses, cond) -> np.ndarray:
-    """The rate matrix A of dM/dt = A M at a condition."""
-    s = selection(g, classes, cond)
-    b, kept = g.breakage.matrix(classes)
-    return rate_matrix(s["impact"] + s["attrition"], b, kept)
-
-
-TAYLOR = 16  #: terms of exp(X) for ‖X‖₁ ≤ ½: the remainder is below 10⁻¹⁸
-
-
-def propagate(a: np.ndarray, m0, t) -> np.ndarray:
-    """M at each time t (s), one row per time: grinding.evolve's scaling and squaring
-    (its doc: the columns of each square scaled back to a sum of 1) with the Taylor
-    series in place of scipy's expm, whose threaded Padé step cost a fit on a busy
-    machine 20 times its arithmetic (numpy's small products do not)."""
-    m0 = np.asarray(m0, dtype=float)
-    norm = float(np.max(np.abs(a).sum(axis=0))) if a.size else 0.0
-    out = []
-    for ti in np.atleast_1d(np.asarray(t, dtype=float)):
-        k = max(0, math.ceil(math.log2(norm * ti / 0.5))) if norm * ti > 0.5 else 0
-        x = a * (ti / 2.0 ** k)
-        e = term = np.eye(len(a))
-        for j in range(1, TAYLOR + 1):
-            term = term @ x / j
-            e = e + term
-        for _ in range(k):
-            e = e @ e
-            e /= e.sum(axis=0, keepdims=True)
-        out.append(e @ m0)
-    return np.array(out)
 
 
 def at_sizes(classes: SizeClasses, q: np.ndarray, x) -> np.ndarray:
@@ -481,31 +459,6 @@ def distribution(fit: SizeFit, cond, m0, times) -> np.ndarray:
     """The passing share at each class edge (columns) at each time (rows)."""
     g = grinding(fit.all_params(), fit.measure, fit.stress_only)
     return passing(fit.classes, propagate(rates(g, fit.classes, cond), m0, times))
-
-
-def time_to_x90(g: Grinding, classes: SizeClasses, cond, m0, target_m: float, hours_max: float = HOURS_MAX) -> float:
-    """s until x90 falls to `target_m` (bisection in log time; inf if not by hours_max).
-    The rate matrix is built once."""
-    a = rates(g, classes, cond)
-
-    def x90(t):
-        v = quantile_size(classes, passing(classes, propagate(a, m0, [t])), 0.9)[0]
-        return 0.0 if math.isnan(v) else v  # nan: below the finest edge
-
-    if x90(0.0) <= target_m:
-        return 0.0
-    hi = hours_max * 3600.0
-    if x90(hi) > target_m:
-        return math.inf
-    lo = 1.0
-    if x90(lo) <= target_m:
-        return lo
-    for _ in range(80):
-        mid = math.sqrt(lo * hi)
-        lo, hi = (mid, hi) if x90(mid) > target_m else (lo, mid)
-        if hi / lo < 1.0001:
-            break
-    return hi
 
 
 def time_to_target(fit: SizeFit, cond, m0, target_m: float) -> tuple[float, float, float]:

@@ -92,7 +92,42 @@ class Fit:
     flat_directions: list[list[float]] = field(default_factory=list)
 
 
-class _Problem:
+class LeastSquares:
+    """A weighted least-squares problem in fitting coordinates z: a subclass gives
+    `bounds` ((lo, hi) per coordinate) and `residuals(z)`. DIFF_STEP: the relative step
+    of the finite-difference Jacobian (None: scipy's default); EDGE: how far inside its
+    bounds a start is put (a start on a bound can stall the trust region there)."""
+
+    DIFF_STEP: float | None = None
+    EDGE = 0.0
+    bounds: list[tuple[float, float]]
+
+    def residuals(self, z) -> np.ndarray:
+        raise NotImplementedError
+
+    def solve(self, z0, hold: dict[int, float] | None = None):
+        """(z, S): the least-squares fit from z0 with the parameters in `hold` (index ->
+        z) held; S the sum of squared weighted residuals."""
+        hold = hold or {}
+        z = np.array(z0, dtype=float)
+        for i, v in hold.items():
+            z[i] = v
+        free = [i for i in range(len(z)) if i not in hold]
+        if free:
+            lo = np.array([self.bounds[i][0] for i in free])
+            hi = np.array([self.bounds[i][1] for i in free])
+
+            def res(x):
+                z[free] = x
+                return self.residuals(z)
+
+            r = optimize.least_squares(res, np.clip(z[free], lo + self.EDGE, hi - self.EDGE), bounds=(lo, hi),
+                                       x_scale=1.0, method="trf", diff_step=self.DIFF_STEP)
+            z[free] = r.x
+        return z, float(np.sum(self.residuals(z) ** 2))
+
+
+class _Problem(LeastSquares):
     """The weighted residuals of a model over the points, as a function of the free
     parameters in fitting coordinates z (log10 for log parameters)."""
 
@@ -129,26 +164,6 @@ class _Problem:
     def residuals(self, z) -> np.ndarray:
         r = (self.predict(self.params(z)) - self.pts.value) * self.w
         return np.where(np.isfinite(r), r, 1e10)
-
-    def solve(self, z0, hold: dict[int, float] | None = None):
-        """(z, S): the least-squares fit from z0 with the parameters in `hold` (index ->
-        z) held; S the sum of squared weighted residuals."""
-        hold = hold or {}
-        z = np.array(z0, dtype=float)
-        for i, v in hold.items():
-            z[i] = v
-        free = [i for i in range(len(z)) if i not in hold]
-        if free:
-            lo = np.array([self.bounds[i][0] for i in free])
-            hi = np.array([self.bounds[i][1] for i in free])
-
-            def res(x):
-                z[free] = x
-                return self.residuals(z)
-
-            r = optimize.least_squares(res, np.clip(z[free], lo, hi), bounds=(lo, hi), x_scale=1.0, method="trf")
-            z[free] = r.x
-        return z, float(np.sum(self.residuals(z) ** 2))
 
 
 def fit(model, conds: dict[str, Condition], pts: Points, fixed: dict | None = None, level: float = 0.95) -> Fit:

@@ -44,17 +44,8 @@ import numpy as np
 from scipy import optimize, stats
 
 from taimill.errors import ConfigError
-from taimill.outcome.grinding import (
-    Austin,
-    Grinding,
-    SizeClasses,
-    feed,
-    passing,
-    quantile_size,
-    rates,
-    selection,
-    time_to_x90,
-)
+from taimill.outcome.fit import LeastSquares
+from taimill.outcome.grinding import Austin, Grinding, SizeClasses, feed, passing, quantile_size, rates, selection, time_to_x90
 from taimill.outcome.grinding import evolve as propagate
 
 SIGMA_SHARE = 0.02  #: σ of a passing share without a sigma column: 2 % of it …
@@ -193,9 +184,12 @@ def prepare(dists, source: str, feed_x50_m: float | None = None, spread: float =
 
 
 # ---------------------------------------------------------------- the fit
-class Problem:
+class Problem(LeastSquares):
     """Weighted residuals of the model over the data as a function of the free
     parameters' log10 values z."""
+
+    DIFF_STEP = 1e-6  # the passing shares move by less than scipy's default step resolves
+    EDGE = 1e-9
 
     def __init__(self, data: Data, conds: dict, free: list[str], held: dict, measure: str, stress_only: bool):
         self.data, self.conds, self.free, self.held = data, conds, list(free), dict(held)
@@ -227,25 +221,6 @@ class Problem:
     def cost(self, z) -> float:
         return float(np.sum(self.residuals(z) ** 2))
 
-    def solve(self, z0, hold: dict[int, float] | None = None):
-        """(z, S): the fit from z0 with the parameters in `hold` (index -> z) held."""
-        hold = hold or {}
-        z = np.array(z0, dtype=float)
-        for i, v in hold.items():
-            z[i] = v
-        free = [i for i in range(len(z)) if i not in hold]
-        if free:
-            lo = np.array([self.bounds[i][0] for i in free])
-            hi = np.array([self.bounds[i][1] for i in free])
-
-            def res(x):
-                z[free] = x
-                return self.residuals(z)
-
-            r = optimize.least_squares(res, np.clip(z[free], lo + 1e-9, hi - 1e-9), bounds=(lo, hi), method="trf",
-                                       x_scale=1.0, diff_step=1e-6)
-            z[free] = r.x
-        return z, self.cost(z)
 
 
 def parameter_names(fix: dict, free: list[str]) -> tuple[list[str], dict]:

@@ -7,6 +7,7 @@ from."""
 from __future__ import annotations
 
 import json
+import math
 import re
 import shutil
 import textwrap
@@ -258,7 +259,13 @@ def cmd_mills(a) -> int:
 
 
 MATERIAL_COLUMNS = (("density_kg_m3", "ρ kg/m³", 8, "g"), ("youngs_modulus_gpa", "E GPa", 6, "g"), ("poisson", "ν", 6, "g"),
-                    ("restitution", "e", 6, "g"), ("restitution_speed_mm_s", "at mm/s", 8, "g"), ("friction", "μ", 5, "g"))
+                    ("restitution", "e", 6, "g"), ("restitution_speed_mm_s", "at mm/s", 8, "g"), ("friction", "μ", 5, "g"),
+                    ("hardness_hv", "HV", 6, "g"))
+NO_SOURCE = "none found: `taimill wear` cannot wear this material"  #: an optional number the table lacks
+
+
+def _number_cell(v, fmt: str) -> str:
+    return "—" if v is None else format(v, fmt)
 
 
 def material_row(data) -> dict:
@@ -267,6 +274,7 @@ def material_row(data) -> dict:
     return {"name": data.name, "density_kg_m3": m.density, "youngs_modulus_gpa": m.youngs_modulus / 1e9,
             "poisson": m.poisson, "restitution": data.restitution,
             "restitution_speed_mm_s": round(data.restitution_speed * 1e3, 9), "friction": data.friction,
+            "hardness_hv": data.hardness_hv if math.isfinite(data.hardness_hv) else None,
             "sources": dict(data.sources), "estimates": data.estimates()}
 
 
@@ -309,11 +317,11 @@ def cmd_materials(a) -> int:
         print(f"{r['name']}:")
         for key, label, _, fmt in MATERIAL_COLUMNS:
             mark = "  (estimate)" if key in r["estimates"] else ""
-            print(f"  {label:9} {format(r[key], fmt):>8}{mark}\n            {r['sources'][key]}")
+            print(f"  {label:9} {_number_cell(r[key], fmt):>8}{mark}\n            {r['sources'].get(key, NO_SOURCE)}")
         return 0
     print(f"{'material':18}" + "".join(f"{label:>{w}} " for _, label, w, _ in MATERIAL_COLUMNS))
     for r in rows:
-        print(f"{r['name']:18}" + "".join(f"{format(r[k], f) + ('*' if k in r['estimates'] else ' '):>{w + 1}}"
+        print(f"{r['name']:18}" + "".join(f"{_number_cell(r[k], f) + ('*' if k in r['estimates'] else ' '):>{w + 1}}"
                                        for k, _, w, f in MATERIAL_COLUMNS))
     print("* an estimate, not a measured value: 'taimill materials NAME' says where it comes from")
     print(f"\n{'friction pair':20} {'μ_s':>6} {'μ_d':>6}  measured contact set")

@@ -153,6 +153,24 @@ def test_fit_and_predict_through_the_cli(runs):
     assert "lower_percent" not in same
 
 
+def test_the_run_summary_carries_wear_per_unit_k_for_sweeps_and_the_designer(runs):
+    # The summary key is the friction route of `taimill wear predict` at k = 1, so a sweep
+    # table has it as a column and the designer can minimise it (at a floor on impact power).
+    from taimill.design.protocol import parse_floor, parse_objective
+    from taimill.store.run import open_run
+
+    summary = open_run(runs / "hm-1.0.zarr").summary
+    assert summary["units"]["wear_friction_g_per_h_per_k"] == "g/h"
+    res = taimill("wear", "predict", runs / "hm-1.0.zarr", "--k-friction", "1", "--json")
+    assert res.returncode == 0, res.stderr
+    total = json.loads(res.stdout)["runs"][0]["worn_g_per_h_total"]
+    assert summary["wear_friction_g_per_h_per_k"] == pytest.approx(total, rel=1e-9)
+    assert summary["contamination_friction_per_h_per_k"] == pytest.approx(total / 2.1, rel=1e-9)
+    assert summary["wear_impact_g_per_h_per_k"] > 0
+    assert parse_objective("wear_friction_g_per_h_per_k:min").key == "wear_friction_g_per_h_per_k"
+    assert parse_floor("impact_power=2.5") == ("impact_power", 2.5)
+
+
 HEAD = "condition,time_h,contamination_pct\n"
 BAD_MEASURED = {  # name -> (CSV text, words of the one line)
     "no time column": ("condition,contamination_pct\nhm-1.0.zarr,1\n", [":1", "header", "time_h"]),

@@ -145,6 +145,35 @@ def depth_summary(cond: WearCondition, k_friction: float, k_impact: float = 0.0)
     return out
 
 
+def mass_per_joule(kind: str, balls: Body, wall: Body) -> float:
+    """kg worn per J of work (at k = 1) in a contact of `kind`: two ball surfaces for
+    ball–ball, a ball surface and the wall for any wall kind."""
+    per = {"balls": balls.density / balls.hardness, "wall": wall.density / wall.hardness}
+    return 2.0 * per["balls"] if kind == "ball_ball" else per["balls"] + per["wall"]
+
+
+def wear_keys(summary: dict, balls: Body | None, wall: Body | None, powder_g: float = math.nan) -> dict:
+    """Summary keys of wear per unit wear coefficient, for sweep tables and the designer
+    (`--objective wear_friction_g_per_h_per_k:min`): the mass the balls and walls lose
+    per hour at k = 1, `wear_friction_g_per_h_per_k` from the friction work of every
+    contact (the ledger) and `wear_impact_g_per_h_per_k` from the normal stress energy
+    of stress events (the event estimator's ball–ball and ball–wall impact powers);
+    with powder, `contamination_friction_per_h_per_k`: the first over the powder mass
+    (the contamination's growth per hour while it is small). Multiply by a k
+    (docs/wear.md) for grams. {} without the mechanisms or a material's hardness."""
+    by = summary.get("dissipation_by_mechanism") or {}
+    if not by or balls is None or wall is None or not (balls.hardness_hv > 0 and wall.hardness_hv > 0):
+        return {}
+    friction = sum(sum(parts.get(c, {}).get("friction", 0.0) for c in ("impact", "persistent"))
+                   * mass_per_joule(kind, balls, wall) for kind, parts in by.items())
+    impact = sum(summary.get(f"impact_power_normal_{kind}", math.nan) * mass_per_joule(kind, balls, wall)
+                 for kind in ("ball_ball", "ball_wall"))
+    out = {"wear_friction_g_per_h_per_k": friction * 1e3 * HOUR, "wear_impact_g_per_h_per_k": impact * 1e3 * HOUR}
+    if powder_g > 0:
+        out["contamination_friction_per_h_per_k"] = out["wear_friction_g_per_h_per_k"] / powder_g
+    return out
+
+
 @dataclass(frozen=True)
 class Wear:
     """The wear model as the least-squares fit (taimill.outcome.fit) sees it: the

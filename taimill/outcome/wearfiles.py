@@ -137,6 +137,23 @@ def open_wear_condition(name: str, base: str, where: str, key: str, threshold_j:
     return WearCondition(name, friction, impact, threshold_j, bodies[0], bodies[1], float(powder), wall_map, t1 - t0)
 
 
+def bodies(config: dict) -> tuple[Body | None, Body | None]:
+    """The balls and jar wall of a run's config as wear Bodies; None where the material
+    is not in the table or states no hardness."""
+    from taimill.model.materials import material_data
+
+    out = []
+    for name in (((config.get("balls") or {}).get("material") or {}).get("name"),
+                 (config.get("jar") or {}).get("wall_material")):
+        try:
+            data = material_data(name)
+        except ConfigError:
+            out.append(None)
+            continue
+        out.append(Body(name, data.material.density, data.hardness_hv) if data.hardness_hv > 0 else None)
+    return out[0], out[1]
+
+
 def is_fit_file(path) -> bool:
     """True if `path` is a wear fit taimill wrote (its first line is FIT_MARK)."""
     try:

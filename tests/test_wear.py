@@ -151,6 +151,14 @@ def test_fit_and_predict_through_the_cli(runs):
     same = json.loads(direct.stdout)["runs"][0]["contamination"]
     assert same["percent"] == pytest.approx(out["runs"][0]["contamination"]["percent"], rel=1e-9)
     assert "lower_percent" not in same
+    # the depth map of one run, drawn; of two runs refused in one line before anything is drawn
+    res = taimill("wear", "predict", runs / "hm-1.0.zarr", "--fit", runs / "fit.toml", "--map", runs / "map.png",
+                  "--figure", runs / "curves.svg")
+    assert res.returncode == 0, res.stderr
+    assert (runs / "map.png").read_bytes()[:4] == b"\x89PNG" and (runs / "curves.svg").stat().st_size > 0
+    res = taimill("wear", "predict", runs / "hm-1.0.zarr", runs / "hm-2.6.zarr", "--fit", runs / "fit.toml",
+                  "--map", runs / "two.png")
+    assert res.returncode == 2 and "--map" in one_line(res.stderr) and not (runs / "two.png").exists()
 
 
 def test_the_run_summary_carries_wear_per_unit_k_for_sweeps_and_the_designer(runs):

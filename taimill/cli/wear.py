@@ -52,7 +52,8 @@ def register(sub) -> None:
     q.add_argument("--impact-threshold", type=_positive, default=None, metavar="J",
                    help="impact energies counted from this normal stress energy (J; default 0, or the fit's)")
     q.add_argument("--figure", type=path_text, help="contamination against time with bands (PNG or SVG)")
-    q.add_argument("--overwrite", action="store_true", help="replace an existing --figure that taimill drew")
+    q.add_argument("--map", type=path_text, help="the wall wear-depth map in µm/h of the one run given (PNG or SVG)")
+    q.add_argument("--overwrite", action="store_true", help="replace an existing --figure or --map that taimill drew")
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.set_defaults(fn=cmd_predict)
 
@@ -102,7 +103,7 @@ def cmd_fit(a) -> int:
                   f"taimill wear fit {a.measured}: Archard wear on friction work"
                   f"{' and impact energy ≥ ' + format(a.impact_threshold, 'g') + ' J' if a.impact else ''}")
         if a.figure:
-            _figure(build["--figure"], _curves(conds, _k(result), _intervals(result), None), _measured(pts),
+            _figure(build["--figure"], _curves(conds, _k(result), _intervals(result), None, "fitted"), _measured(pts),
                     f"wear fit ({result.level:.0%} bands)")
         _commit(outs)
     for w in result.warnings:
@@ -140,7 +141,7 @@ def _measured(pts) -> dict:
     return out
 
 
-def _curves(conds: dict, k: dict, intervals: dict | None, hours) -> list[dict]:
+def _curves(conds: dict, k: dict, intervals: dict | None, hours, kind: str = "predicted") -> list[dict]:
     """Contamination (%) against time for each run at k, with the band of the k
     intervals (contamination grows with every k, so the band is the ends together)."""
     import numpy as np
@@ -151,7 +152,7 @@ def _curves(conds: dict, k: dict, intervals: dict | None, hours) -> list[dict]:
     t = np.linspace(0.0, 1.1 * top * 3600.0, CURVE_POINTS)
     lo = {n: v[0] for n, v in intervals.items()} if intervals else k
     hi = {n: v[1] for n, v in intervals.items()} if intervals else k
-    return [{"label": name, "kind": "fitted" if intervals else "predicted", "time_s": t,
+    return [{"label": name, "kind": kind, "time_s": t,
              "value": 100 * contamination(c, k["k_friction"], k["k_impact"], t),
              "lower": 100 * contamination(c, lo["k_friction"], lo["k_impact"], t),
              "upper": 100 * contamination(c, hi["k_friction"], hi["k_impact"], t)} for name, c in conds.items()]
@@ -161,6 +162,15 @@ def _figure(path, curves, measured, title) -> None:
     from taimill.figures.kinetics import outcome_figure
 
     outcome_figure(path, curves, measured, ylabel="contamination (% of the powder)", title=title)
+
+
+def _map(path, cond, k: dict) -> None:
+    from taimill.figures.wear import depth_figure
+    from taimill.outcome.wear import WALLS, depth_map
+
+    maps = {s: depth_map(cond, s, k["k_friction"], k["k_impact"]) for s in WALLS}
+    depth_figure(path, cond.wall_map, maps, f"{cond.name}: wall wear depth at k_f {k['k_friction']:.3g}, "
+                                            f"k_i {k['k_impact']:.3g}")
 
 
 def cmd_predict(a) -> int:
@@ -190,7 +200,11 @@ def cmd_predict(a) -> int:
     with reads() as more:
         conds = _runs(a.runs, ".", None, threshold)
     inputs = [*inputs, *more, *([a.fit] if a.fit else []), *a.runs]
-    given = _check_outputs([("--figure", a.figure, "figure", is_figure, FIGURE_SUFFIXES)], a.overwrite, inputs)
+    given = _check_outputs([("--figure", a.figure, "figure", is_figure, FIGURE_SUFFIXES),
+                            ("--map", a.map, "figure", is_figure, FIGURE_SUFFIXES)], a.overwrite, inputs)
+    if a.map and (len(conds) != 1 or next(iter(conds.values())).wall_map is None):
+        raise ConfigError("command line", "--map", a.map, "one run, which kept its event rows (outputs.events = "
+                          "\"rows\"): the map is of one run's walls")
     rows = []
     for name, c in conds.items():
         if k["k_impact"] > 0 and c.impact_w is None:
@@ -210,12 +224,16 @@ def cmd_predict(a) -> int:
         if c.wall_map is not None:
             row["wall_depth"] = depth_summary(c, k["k_friction"], k["k_impact"])
         rows.append(row)
-    if a.figure:
+    if given:
         from taimill.store.output import Outputs
 
         with Outputs() as outs:
-            _figure(_writing(outs, given, a.overwrite, inputs)["--figure"], _curves(conds, k, intervals, a.hours), {},
-                    "wear: contamination against milling time" + (f" ({fit['level']:.0%} bands)" if fit else ""))
+            build = _writing(outs, given, a.overwrite, inputs)
+            if a.figure:
+                _figure(build["--figure"], _curves(conds, k, intervals, a.hours), {},
+                        "wear: contamination against milling time" + (f" ({fit['level']:.0%} bands)" if fit else ""))
+            if a.map:
+                _map(build["--map"], next(iter(conds.values())), k)
             _commit(outs)
     out = {"k": k, "intervals": intervals, "impact_threshold_J": threshold, "runs": rows}
     if a.json:

@@ -218,3 +218,22 @@ def test_predict_refuses_a_run_without_powder_and_a_missing_coefficient(runs, tm
     assert res.returncode == 2 and "--powder-mass" in one_line(res.stderr)
     res = taimill("wear", "predict", runs / "hm-1.0.zarr")
     assert res.returncode == 2 and "--k-friction" in one_line(res.stderr)
+
+
+def test_fit_outputs_replace_only_taimills_own_file_and_never_an_input(runs):
+    folder = runs / "outputs"
+    folder.mkdir(exist_ok=True)
+    csv_text = "condition,time_h,contamination_pct\n../hm-1.0.zarr,1,0.3\n../hm-1.0.zarr,16,4.1\n"
+    (folder / "measured.csv").write_text(csv_text)
+    (folder / "notes.toml").write_text("# the user's own notes\n")
+    res = taimill("wear", "fit", folder / "measured.csv", "--out", folder / "notes.toml", "--overwrite")
+    assert res.returncode == 2 and "--out" in one_line(res.stderr)
+    assert (folder / "notes.toml").read_text() == "# the user's own notes\n"
+    res = taimill("wear", "fit", folder / "measured.csv", "--out", folder / "measured.csv", "--overwrite")
+    assert res.returncode == 2 and "--out" in one_line(res.stderr)
+    assert (folder / "measured.csv").read_text() == csv_text
+    assert taimill("wear", "fit", folder / "measured.csv", "--out", folder / "fit.toml").returncode == 0
+    res = taimill("wear", "fit", folder / "measured.csv", "--out", folder / "fit.toml")
+    assert res.returncode == 2 and "--overwrite" in one_line(res.stderr)
+    assert taimill("wear", "fit", folder / "measured.csv", "--out", folder / "fit.toml", "--overwrite").returncode == 0
+    assert sorted(p.name for p in folder.iterdir()) == ["fit.toml", "measured.csv", "notes.toml"]

@@ -67,7 +67,6 @@ class WearCondition:
     wall: Body
     powder_g: float
     wall_map: object = field(default=None, compare=False, repr=False)
-    tau: float = math.nan  #: s, the wall map's window
 
 
 def archard_volume(work_j, k: float, hardness_pa: float):

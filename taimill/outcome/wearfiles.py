@@ -116,13 +116,13 @@ def open_wear_condition(name: str, base: str, where: str, key: str, threshold_j:
     if not powder or not powder > 0:
         raise ConfigError(where, key, name, "a run with powder (taimill run --powder-mass G): contamination is "
                           "a fraction of the powder")
-    bodies = []
+    worn = []
     for role, mat in (("ball", config["balls"]["material"]["name"]), ("wall", config["jar"]["wall_material"])):
         data = material_data(mat, where, key)
         if not data.hardness_hv > 0:
             raise ConfigError(where, key, name, f"{role} material {mat} has no hardness_hv in the material table: "
                               "its wear cannot be computed")
-        bodies.append(Body(mat, data.material.density, data.hardness_hv))
+        worn.append(Body(mat, data.material.density, data.hardness_hv))
     t0, t1 = (float(x) for x in summary["analysis_window"])
     impact, wall_map = None, None
     if config.get("events_output", "rows") == "rows":
@@ -134,7 +134,7 @@ def open_wear_condition(name: str, base: str, where: str, key: str, threshold_j:
         impact = {k: float(ev["se_n"][big & sel].sum() / (t1 - t0)) for k, sel in on.items()}
         wall_map = WallMap(geometry(store), t0, t1=t1)
         wall_map.add(ev)
-    return WearCondition(name, friction, impact, threshold_j, bodies[0], bodies[1], float(powder), wall_map, t1 - t0)
+    return WearCondition(name, friction, impact, threshold_j, worn[0], worn[1], float(powder), wall_map)
 
 
 def bodies(config: dict) -> tuple[Body | None, Body | None]:

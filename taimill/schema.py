@@ -176,6 +176,9 @@ SUMMARY_UNITS: dict[str, str] = {
     "powder_mass_g": "g", "ball_to_powder": "1", "rate_above_per_g": "1/(s g)",
     **{f"specific_power{s}_W_per_g": "W/g" for s in ("", "_impact", "_persistent", "_normal", "_shear")},
     "shear_power_persistent_W": "W", "shear_share": "1", "shear_power_persistent_wall_W_per_m2": "W/m²",
+    # wear per unit wear coefficient (taimill.outcome.wear.wear_keys; docs/wear.md)
+    "wear_friction_g_per_h_per_k": "g/h", "wear_impact_g_per_h_per_k": "g/h",
+    "contamination_friction_per_h_per_k": "1/h",
     "window": "s", "stress_un": "m/s", "energy": "J", "mean": "J", "median": "J", "p90": "J", "rate_above": "1/s",
     **{f"spectrum_{m}_{stat}": "J" for m in ("dissipated_normal", "dissipated_friction", "se_normal", "se_tangential")
        for stat in ("mean", "median", "p90")},

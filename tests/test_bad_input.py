@@ -106,6 +106,7 @@ TOML_READERS = {
     "kinetics predict FIT": (["kinetics", "predict", "{F}", "{in}/condition.json"], "FIT"),
     "sizes predict PARAMS": (["sizes", "predict", "{F}", "{in}/kin/condition-a.json", "--feed-x50", "100"], "PARAMS"),
     "design PRESET": (["design", "{F}", "--out", "{work}/study"], "preset"),
+    "wear predict --fit": (["wear", "predict", "{in}/empty.zarr", "--fit", "{F}"], "--fit"),
 }
 CSV_READERS = {
     "calibrate fit --data": (["calibrate", "fit", "--pair", "steel-steel", "--data", "{F}"], "--data"),
@@ -113,6 +114,7 @@ CSV_READERS = {
     "preset initial_positions key": (["run", "{P:initial_positions}"], "initial_positions"),
     "kinetics fit POINTS": (["kinetics", "fit", "{F}", "--out", "{work}/new.toml"], "POINTS"),
     "sizes check SIZES": (["sizes", "check", "{F}"], "SIZES"),
+    "wear fit MEASURED": (["wear", "fit", "{F}", "--out", "{work}/new.toml"], "MEASURED"),
 }
 
 
@@ -452,6 +454,13 @@ VALUES = [
     ("jars show default out existing", ["jars", "show", "HM"], ["--out", "jar-HM.png", "--overwrite"]),
     ("jars show --out a folder", ["jars", "show", "CY", "--out", "{work}/adir.png", "--overwrite"], ["--out", "folder"]),
     ("jars unknown subcommand", ["jars", "draw", "CY"], ["invalid choice", "draw"]),
+    # wear: a coefficient is needed, the runs must exist, times and levels in range
+    ("wear predict without a coefficient", ["wear", "predict", "{in}/empty.zarr"], ["--fit", "--k-friction"]),
+    ("wear predict --hours negative", ["wear", "predict", "{in}/empty.zarr", "--k-friction", "1e-4", "--hours", "-1"],
+     ["--hours", "[0, ∞)"]),
+    ("wear predict missing run", ["wear", "predict", "{work}/nope.zarr", "--k-friction", "1e-4"], ["nope.zarr", "no such"]),
+    ("wear fit --level 1", ["wear", "fit", "{in}/kin/points.csv", "--out", "{work}/new.toml", "--level", "1"],
+     ["--level", "[0.5, 1)"]),
     # kinetics: outputs checked before the fit, values and fit files in their ranges
     ("kinetics fit --out existing", KIN_FIT[:3] + ["--out", "{work}/existing.toml"], ["--out", "--overwrite"]),
     ("kinetics fit --figure .json", KIN_FIT + ["--figure", "{work}/x.json"], ["--figure", ".png or .svg"]),

@@ -15,10 +15,12 @@ import functools
 import os
 import sys
 
-from taimill.cli import advise, calibrate, catalog, compare, design, heat, kinetics, liggghts, record, report, run, sizes, sweep, tui
+from taimill.cli import (advise, calibrate, catalog, compare, design, heat, kinetics, liggghts, record, report, run, sizes,
+                         sweep, tui, wear)
 from taimill.cli.common import EXIT_BAD_INPUT, EXIT_WRITE_REFUSED, Parser
 
-SUBCOMMANDS = (run, calibrate, catalog, sweep, advise, report, record, tui, liggghts, compare, kinetics, sizes, design, heat)
+SUBCOMMANDS = (run, calibrate, catalog, sweep, advise, report, record, tui, liggghts, compare, kinetics, sizes, design,
+               heat, wear)
 
 
 def version() -> str:

@@ -7,6 +7,7 @@ from."""
 from __future__ import annotations
 
 import json
+import math
 import re
 import shutil
 import textwrap
@@ -257,8 +258,14 @@ def cmd_mills(a) -> int:
 
 
 MATERIAL_COLUMNS = (("density_kg_m3", "ρ kg/m³", 8, "g"), ("youngs_modulus_gpa", "E GPa", 6, "g"), ("poisson", "ν", 6, "g"),
-                    ("restitution", "e", 6, "g"), ("restitution_speed_mm_s", "at mm/s", 8, "g"), ("friction", "μ", 5, "g"))
+                    ("restitution", "e", 6, "g"), ("restitution_speed_mm_s", "at mm/s", 8, "g"), ("friction", "μ", 5, "g"),
+                    ("hardness_hv", "HV", 6, "g"))
 THERMAL_COLUMNS = (("cp_J_per_kgK", "c_p J/kgK", 8, "g"), ("conductivity_W_per_mK", "k W/mK", 8, "g"))  #: `materials NAME`, the heat model
+NO_SOURCE = "none found: `taimill wear` cannot wear this material"  #: an optional number the table lacks
+
+
+def _number_cell(v, fmt: str) -> str:
+    return "—" if v is None else format(v, fmt)
 
 
 def material_row(data) -> dict:
@@ -276,7 +283,8 @@ def material_row(data) -> dict:
     return {"name": data.name, "density_kg_m3": m.density, "youngs_modulus_gpa": m.youngs_modulus / 1e9,
             "poisson": m.poisson, "restitution": data.restitution,
             "restitution_speed_mm_s": round(data.restitution_speed * 1e3, 9), "friction": data.friction,
-            **thermal[0], "sources": {**data.sources, **thermal[1]},
+            **thermal[0], "hardness_hv": data.hardness_hv if math.isfinite(data.hardness_hv) else None,
+            "sources": {**data.sources, **thermal[1]},
             "estimates": data.estimates() + [k for k, v in thermal[1].items() if is_estimate(v)]}
 
 
@@ -319,11 +327,11 @@ def cmd_materials(a) -> int:
         print(f"{r['name']}:")
         for key, label, _, fmt in MATERIAL_COLUMNS + tuple(c for c in THERMAL_COLUMNS if r[c[0]] is not None):
             mark = "  (estimate)" if key in r["estimates"] else ""
-            print(f"  {label:9} {format(r[key], fmt):>8}{mark}\n            {r['sources'][key]}")
+            print(f"  {label:9} {_number_cell(r[key], fmt):>8}{mark}\n            {r['sources'].get(key, NO_SOURCE)}")
         return 0
     print(f"{'material':18}" + "".join(f"{label:>{w}} " for _, label, w, _ in MATERIAL_COLUMNS))
     for r in rows:
-        print(f"{r['name']:18}" + "".join(f"{format(r[k], f) + ('*' if k in r['estimates'] else ' '):>{w + 1}}"
+        print(f"{r['name']:18}" + "".join(f"{_number_cell(r[k], f) + ('*' if k in r['estimates'] else ' '):>{w + 1}}"
                                        for k, _, w, f in MATERIAL_COLUMNS))
     print("* an estimate, not a measured value: 'taimill materials NAME' says where it comes from")
     print(f"\n{'friction pair':20} {'μ_s':>6} {'μ_d':>6}  measured contact set")

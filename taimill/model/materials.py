@@ -18,7 +18,8 @@ from taimill.model.tables import Table, is_estimate, read_toml
 MATERIALS_FILE = files.PACKAGE / "data" / "materials.toml"
 # The keys of each kind of table (unknown keys are errors, reported with the nearest known one)
 FRICTION_KEYS = ("mu_s", "mu_d", "v_s_mm_s", "v_d_mm_s", "mu_r", "tangential", "rolling")
-MATERIAL_NUMBERS = ("density_kg_m3", "youngs_modulus_gpa", "poisson", "restitution", "restitution_speed_mm_s", "friction")
+MATERIAL_NUMBERS = ("density_kg_m3", "youngs_modulus_gpa", "poisson", "restitution", "restitution_speed_mm_s",
+                    "friction", "hardness_hv")
 # Thermal numbers (optional: the heat model, taimill.outcome.thermal, needs them)
 THERMAL_NUMBERS = ("cp_J_per_kgK", "conductivity_W_per_mK")
 MATERIAL_KEYS = (*MATERIAL_NUMBERS, *THERMAL_NUMBERS, "source")
@@ -42,6 +43,7 @@ class MaterialData:
     restitution_speed: float  #: m/s
     friction: float  #: dry sliding friction coefficient, self-mated (listings only)
     sources: dict  #: {file key: source text}; texts starting "estimate" mark estimates
+    hardness_hv: float = math.nan  #: Vickers hardness (HV); nan: not known (taimill wear refuses it)
 
     @property
     def name(self) -> str:
@@ -120,6 +122,7 @@ def material_data(name: str, source="material", key="material") -> MaterialData:
         t.get("restitution_speed_mm_s", lo=0, lo_open=True, hi=1e5) * 1e-3,
         t.get("friction", **RANGES["mu_s"].bounds),
         {k: v for k, v in t.sources(MATERIAL_NUMBERS + THERMAL_NUMBERS).items() if k in MATERIAL_NUMBERS},
+        t.get("hardness_hv", math.nan, lo=0, lo_open=True, hi=1e4),
     )
     for k in THERMAL_NUMBERS:
         t.get(k, None, lo=0, lo_open=True, hi=1e4)

@@ -40,7 +40,17 @@ def point_result(preset, spec, summary, runner, b, wall, status) -> dict:
     # the dose per gram of powder (with a [powder] table) and the gentle / shear view
     result.update(dose_keys(result, preset.as_dict()))
     result.update(shear_keys(result, summary.summary.geom.wall_area))
+    result.update(_wear_keys(result, preset.as_dict()))
     return with_units(result)
+
+
+def _wear_keys(result: dict, config: dict) -> dict:
+    """Wear per unit wear coefficient (taimill.outcome.wear.wear_keys)."""
+    from taimill.outcome.dose import powder_grams
+    from taimill.outcome.wear import wear_keys
+    from taimill.outcome.wearfiles import bodies
+
+    return wear_keys(result, *bodies(config), powder_grams(config))
 
 
 class SpectraOnly(Relay):

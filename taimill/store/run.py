@@ -144,6 +144,8 @@ class RunStore:
             self._bad(SPECTRA, "missing (its writer finished, so it was there)")
         self.rows = dict(self.n_valid)
         self._fold_journal(stale=str(self.status).startswith(FLUSHED) and self.summary is not None, settled=settled)
+        if not finished and not settled and self._n_valid_moved():
+            raise _Moved
         if not finished and not self.attrs.get("energy_source"):
             self._cut_to_whole_frames()
         self._check_summary()
@@ -205,6 +207,19 @@ class RunStore:
                     kept.append({k: v[:m] for k, v in block.items()})
                 left -= m
             self.journal_rows[table] = kept
+
+    def _n_valid_moved(self) -> bool:
+        """True if a table's n_valid changed since this reader read it: its writer
+        committed rows into the arrays meanwhile, and may have deleted the journal that
+        held them before this reader listed it (an empty listing shows no gap). Seen at a
+        run's end, whose flush writes every row into the arrays and deletes the journal:
+        a read then had 249 fewer frames than the read before it."""
+        try:
+            fresh = zarr.open_group(self.group.store, path=self.group.path, mode="r")
+            return any((fresh[table].attrs.get("n_valid", 0) if table in fresh else 0) != n
+                       for table, n in self.n_valid.items())
+        except Exception:  # half-written metadata: the writer is at it
+            return True
 
     def _fold_journal(self, stale: bool = False, settled: bool = True) -> None:
         """Rows of the journal segments that continue each table after its n_valid

@@ -185,12 +185,16 @@ def test_ctrl_c_between_frames_stops_at_the_next_launch(tmp_path):
     assert store.summary["sim_seconds"] < 50, store.summary["sim_seconds"]  # the next frame is at 100 s
 
 
-def test_ctrl_c_before_the_first_frame_leaves_no_store(tmp_path):
+@pytest.mark.parametrize("events", ["rows", "spectra"])
+def test_ctrl_c_before_the_first_frame_leaves_no_store(tmp_path, events):
     """Ctrl-C while the kernels compile (an empty kernel cache: seconds) stops the run
-    before its first frame: a store with nothing to read would only block the retry."""
+    before its first frame: a store with nothing to read would only block the retry. In
+    both event modes (statistics mode is the default above 10⁴ balls)."""
     out = tmp_path / "early.zarr"
+    preset = tmp_path / "p.toml"
+    preset.write_text((ROOT / PRESET).read_text().replace("trajectory_rate = 100", f'trajectory_rate = 100\nevents = "{events}"'))
     env = os.environ | {"TI_OFFLINE_CACHE_FILE_PATH": str(tmp_path / "cache"), "HOME": str(tmp_path)}
-    proc = subprocess.Popen(command("run", PRESET, "--duration", 2, "--out", out, "--json"), cwd=ROOT, env=env,
+    proc = subprocess.Popen(command("run", preset, "--duration", 2, "--out", out, "--json"), cwd=ROOT, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     said = []
     for line in proc.stderr:
@@ -204,8 +208,36 @@ def test_ctrl_c_before_the_first_frame_leaves_no_store(tmp_path):
     assert proc.returncode == 130, err
     assert one_line(err) == f"taimill: interrupted; nothing was written to {out}"
     assert not out.exists() and not lock_path(out).exists()
-    retry = taimill("run", PRESET, "--duration", 0.05, "--out", out, "--json")
+    retry = taimill("run", preset, "--duration", 0.05, "--out", out, "--json")
     assert retry.returncode == 0, retry.stderr
+
+
+def test_a_store_stopped_while_its_tables_were_being_made_is_not_kept(tmp_path):
+    """holds_a_frame reads the files. The store's start writes its config, then makes its
+    tables (seconds for 10⁵ balls); Ctrl-C between the two left a finished store without
+    tables, which the reader calls damaged, so it was kept, unreadable (bench.py section
+    9: 'trajectory/time: missing' 1 s into a 10⁵-ball run)."""
+    from test_store import N_BALLS, energy_block, event_block, frame_block
+
+    from taimill.store.run import holds_a_frame
+
+    early, later = tmp_path / "early.zarr", tmp_path / "later.zarr"
+    sink = ZarrSink(early)
+    sink.start({}, N_BALLS, np.full(N_BALLS, 0.005))
+    shutil.rmtree(early / "trajectory")  # as if stopped before this table was made
+    sink.finish({"sim_seconds": 0.0}, "interrupted")
+    with pytest.raises(StoreError, match="trajectory"):
+        open_run(early)
+    assert not holds_a_frame(early)
+    sink = ZarrSink(later)
+    sink.start({}, N_BALLS, np.full(N_BALLS, 0.005))
+    frames = frame_block(np.random.default_rng(0), 3)
+    sink.events(event_block(np.random.default_rng(1), 5))
+    sink.frames(frames)
+    sink.energy({**energy_block(np.random.default_rng(2), 3), "time": frames["time"]})
+    assert holds_a_frame(later)  # a journal commit
+    sink.finish({"sim_seconds": 0.0}, "interrupted")
+    assert holds_a_frame(later) and not holds_a_frame(tmp_path / "none.zarr")
 
 
 def test_an_interrupt_swallowed_on_its_way_out_is_raised_again():

@@ -17,11 +17,13 @@ segment folded into the arrays and deleted, spectra rewritten).
 from __future__ import annotations
 
 import io
+import json
 import math
 import os
 import sys
 import time
 from functools import cached_property
+from pathlib import Path
 
 import numpy as np
 import zarr
@@ -33,8 +35,17 @@ from taimill.model import rules
 from taimill.model.mechanisms import STRESS_MIN_UN
 from taimill.model.spectra import MEASURES, from_rows
 from taimill.store.chunks import _chunk_key, location, read_rows, why
-from taimill.store.layout import ADDED_IN_2, FLUSHED, JOURNAL, SCHEMA_VERSION, Column, layout
-from taimill.store.spectra import GROUP as SPECTRA, Busy, read_spectra
+from taimill.store.layout import (
+    ADDED_IN_2,
+    FLUSHED,
+    JOURNAL,
+    SCHEMA_VERSION,
+    Column,
+    layout,
+)
+from taimill.store.spectra import GROUP as SPECTRA
+from taimill.store.spectra import Busy, read_spectra
+
 
 def committed_rows(group: zarr.Group, table: str) -> int:
     """Committed row count of a table: its `n_valid` and the journal's rows after them;
@@ -510,15 +521,23 @@ def trim_to_valid(path_or_group) -> None:
 
 
 def holds_a_frame(path) -> bool:
-    """True if `path` is a run store taimill wrote with at least one committed frame:
-    what a run stopped early keeps. One stopped before its first frame (Ctrl-C while
-    compiling, a fault at the first step) holds nothing a reader can use and is removed,
-    so that its retry does not meet it; a damaged store is kept (it may be evidence)."""
+    """True if `path` is a run store taimill wrote that committed anything: a frame in
+    the trajectory's arrays, or a journal segment (a launch's rows). What a run stopped
+    early keeps; one stopped before its first commit (Ctrl-C while compiling or in the
+    first launch, a fault at the first step) holds nothing a reader can use and is
+    removed, so that its retry does not meet it. Read from the files themselves, not
+    through `open_run`: the finished writer of such a store recorded a summary, and the
+    reader calls a finished store without tables damaged (the store was kept so, and
+    read as unreadable)."""
     from taimill.store.layout import is_run_store
 
     if not is_run_store(path):
         return False
-    try:
-        return open_run(path).rows.get("trajectory", 0) > 0
-    except StoreError:
+    root = Path(path)
+    if any((root / JOURNAL).glob("*.npz")):
         return True
+    try:
+        meta = json.loads((root / "trajectory" / "zarr.json").read_text())
+        return int((meta.get("attributes") or {}).get("n_valid", 0)) > 0
+    except (OSError, ValueError, TypeError):
+        return False

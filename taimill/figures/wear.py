@@ -27,7 +27,7 @@ def depth_figure(path, wall_map, maps: dict, title: str) -> Path:
     shown = {s: np.where((wall_map.count[s] >= MIN_EVENTS) & (d > 0), d, np.nan) for s, (d, _) in maps.items()}
     vals = np.concatenate([v[np.isfinite(v)] for v in shown.values()])
     norm = LogNorm(vmin=vals.min(), vmax=vals.max()) if len(vals) else None
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), gridspec_kw={"width_ratios": [2.2, 1, 1]})
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), gridspec_kw={"width_ratios": [2.2, 1, 1]}, layout="constrained")
     outline = np.vstack([wall_map.geom.profile.outline, wall_map.geom.profile.outline[:1]]) * MM
     im = None
     for ax, s in zip(axes, ("side", "floor", "lid")):

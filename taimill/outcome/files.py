@@ -106,7 +106,8 @@ def _number(text: str, where: str, key: str, lo, allowed: str, strict: bool = Fa
     return v
 
 
-def _toml_value(v) -> str:
+def toml_value(v) -> str:
+    """One value as TOML writes it (the fit files of kinetics, sizes and wear)."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, str):
@@ -114,19 +115,24 @@ def _toml_value(v) -> str:
     if isinstance(v, (int, np.integer)):
         return str(int(v))
     if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
     v = float(v)
     return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
 
 
-def is_fit_file(path) -> bool:
-    """True if `path` is a fit file taimill wrote (its first line is FIT_MARK): the one
-    kind of file `taimill kinetics fit --out … --overwrite` replaces."""
+def starts_with(path, mark: str) -> bool:
+    """True if the file `path` begins with `mark`: how taimill tells its own fit files
+    (kinetics, sizes, wear) from a user's, the one kind each `--out … --overwrite` replaces."""
     try:
         with open(path, "rb") as f:
-            return f.read(len(FIT_MARK)) == FIT_MARK.encode()
+            return f.read(len(mark.encode())) == mark.encode()
     except OSError:
         return False
+
+
+def is_fit_file(path) -> bool:
+    """True if `path` is a kinetics fit file taimill wrote (its first line is FIT_MARK)."""
+    return starts_with(path, FIT_MARK)
 
 
 def write_fit(path, fit: Fit, header: str) -> None:
@@ -142,9 +148,9 @@ def write_fit(path, fit: Fit, header: str) -> None:
         lines.insert(0, FIT_MARK)
     lines.append("# covariance and [profiles]: of the fitted coordinates (log10 of the log parameters), for "
                  "prediction bands")
-    lines += [f"{k} = {_toml_value(v)}" for k, v in top.items()]
+    lines += [f"{k} = {toml_value(v)}" for k, v in top.items()]
     for name, table in tables.items():
-        lines += ["", f"[{name}]"] + [f"{json.dumps(k)} = {_toml_value(v)}" for k, v in table.items()]
+        lines += ["", f"[{name}]"] + [f"{json.dumps(k)} = {toml_value(v)}" for k, v in table.items()]
     with whole_file(Path(path), "fit") as part:
         Path(part).write_text("\n".join(lines) + "\n")
 

@@ -45,7 +45,17 @@ from scipy import optimize, stats
 
 from taimill.errors import ConfigError
 from taimill.outcome.fit import LeastSquares
-from taimill.outcome.grinding import Austin, Grinding, SizeClasses, feed, passing, quantile_size, rates, selection, time_to_x90
+from taimill.outcome.grinding import (
+    Austin,
+    Grinding,
+    SizeClasses,
+    feed,
+    passing,
+    quantile_size,
+    rates,
+    selection,
+    time_to_x90,
+)
 from taimill.outcome.grinding import evolve as propagate
 
 SIGMA_SHARE = 0.02  #: σ of a passing share without a sigma column: 2 % of it …
@@ -456,18 +466,16 @@ def selection_rates(fit: SizeFit, cond) -> dict[str, np.ndarray]:
 def is_fit_file(path) -> bool:
     """True if `path` is a sizes fit file taimill wrote (its first line is MARK): the one
     kind of file `taimill sizes fit --out … --overwrite` replaces."""
-    try:
-        with open(path, "rb") as f:
-            return f.read(len(MARK)) == MARK.encode()
-    except OSError:
-        return False
+    from taimill.outcome.files import starts_with
+
+    return starts_with(path, MARK)
 
 
 def write_fit(path, fit: SizeFit, header: str) -> None:
     """The fit as a small TOML file, MARK its first line, `header` (# comments) next."""
     from pathlib import Path
 
-    from taimill.outcome.files import _toml_value
+    from taimill.outcome.files import toml_value
     from taimill.store.output import whole_file
 
     top = {"model": MODEL, "measure": fit.measure, "stress_only": fit.stress_only, "level": fit.level,
@@ -481,9 +489,9 @@ def write_fit(path, fit: SizeFit, header: str) -> None:
     lines = [MARK] + [f"# {h}" for h in header.splitlines()]
     lines.append("# covariance and profile_ends: of the log10 parameters, for prediction bands; "
                  "classes.feed: masses per class of the first condition's feed")
-    lines += [f"{k} = {_toml_value(v)}" for k, v in top.items()]
+    lines += [f"{k} = {toml_value(v)}" for k, v in top.items()]
     for name, table in tables.items():
-        lines += ["", f"[{name}]"] + [f"{json.dumps(k)} = {_toml_value(v)}" for k, v in table.items()]
+        lines += ["", f"[{name}]"] + [f"{json.dumps(k)} = {toml_value(v)}" for k, v in table.items()]
     with whole_file(Path(path), "fit") as part:
         Path(part).write_text("\n".join(lines) + "\n")
 

@@ -22,6 +22,7 @@ import numpy as np
 
 from taimill.errors import ConfigError
 from taimill.model.files import read_text, read_toml
+from taimill.outcome.files import starts_with, toml_value
 from taimill.outcome.fit import Fit, Points
 from taimill.outcome.wear import KINDS, Body, WearCondition
 from taimill.store.output import whole_file
@@ -93,10 +94,9 @@ def open_wear_condition(name: str, base: str, where: str, key: str, threshold_j:
     from taimill.analysis.run import geometry
     from taimill.analysis.rungeometry import FLOOR, LID, SIDE
     from taimill.analysis.spatial import WallMap
+    from taimill.errors import StoreError
     from taimill.model.materials import material_data
     from taimill.store.run import open_run
-
-    from taimill.errors import StoreError
 
     path = name if os.path.isabs(name) else os.path.join(base, name)
     if not os.path.exists(path):
@@ -156,24 +156,7 @@ def bodies(config: dict) -> tuple[Body | None, Body | None]:
 
 def is_fit_file(path) -> bool:
     """True if `path` is a wear fit taimill wrote (its first line is FIT_MARK)."""
-    try:
-        with open(path, "rb") as f:
-            return f.read(len(FIT_MARK)) == FIT_MARK.encode()
-    except OSError:
-        return False
-
-
-def _toml(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return json.dumps(v, ensure_ascii=False)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml(x) for x in v) + "]"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    v = float(v)
-    return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
+    return starts_with(path, FIT_MARK)
 
 
 def write_fit(path, fit: Fit, threshold_j: float, header: str) -> None:
@@ -183,9 +166,9 @@ def write_fit(path, fit: Fit, threshold_j: float, header: str) -> None:
            "open_ends": fit.open_ends}
     tables = {"parameters": fit.params, "fixed": fit.fixed, "intervals": {k: list(v) for k, v in fit.intervals.items()},
               "goodness": fit.goodness}
-    lines = [FIT_MARK] + [f"# {h}" for h in header.splitlines()] + [f"{k} = {_toml(v)}" for k, v in top.items()]
+    lines = [FIT_MARK] + [f"# {h}" for h in header.splitlines()] + [f"{k} = {toml_value(v)}" for k, v in top.items()]
     for name, table in tables.items():
-        lines += ["", f"[{name}]"] + [f"{json.dumps(k)} = {_toml(v)}" for k, v in table.items()]
+        lines += ["", f"[{name}]"] + [f"{json.dumps(k)} = {toml_value(v)}" for k, v in table.items()]
     with whole_file(Path(path), "fit") as part:
         Path(part).write_text("\n".join(lines) + "\n")
 

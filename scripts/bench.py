@@ -96,12 +96,16 @@ are the per-core figures to quote; wall figures then measure the machine's load.
    of `taimill sizes predict`, impact and attrition on, on the shipped condition
    examples/outcome/condition-a.json; best of 5 after one untimed call (imports).
 
+11. The step's kernels (issue 49: the serial share of a step ≤ 2 % at 10⁵ balls on one
+   thread): every kernel of one large mill's step timed, the serial ones named
+   (scripts/bench_kernels.py).
+
 8. A/B (`--ab DIR`, alone): the reference case (CPU µs per step, one thread, 3 s) and the
    settled 10⁵ dense bed of section 5 (CPU ns per ball-step) from this checkout and
    from the one in DIR, interleaved rounds in one run, best of each: a change's
    before/after on the same machine at the same time.
 
-    scripts/bench.py [--quick] [--only reference|scaling|recording|sweep|dense|presets|trajectory|signals|grinding] [--skip-million] [--json FILE]
+    scripts/bench.py [--quick] [--only reference|scaling|recording|sweep|dense|presets|trajectory|signals|grinding|kernels] [--skip-million] [--json FILE]
     scripts/bench.py --ab DIR
 """
 
@@ -1207,6 +1211,10 @@ def dense_section(quick: bool, million: bool = True) -> list[dict]:
 
 WORKERS.update(dense=work_dense)
 
+from bench_kernels import kernels_section, work_kernels  # noqa: E402 - section 11, its own file
+
+WORKERS.update(kernels=work_kernels)
+
 
 # ---------------------------------------------------------------- main
 # ---- 8. A/B against another checkout
@@ -1342,7 +1350,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="short run for CI (< 2 min)")
     ap.add_argument("--only", choices=("reference", "scaling", "recording", "sweep", "dense", "presets", "trajectory",
-                                       "signals", "grinding"),
+                                       "signals", "grinding", "kernels"),
                     help="run one section")
     ap.add_argument("--skip-million", action="store_true", help="dense beds: skip the taimill run of 10⁶ balls")
     ap.add_argument("--json", type=Path, metavar="FILE", help="write every number to FILE")
@@ -1382,6 +1390,9 @@ def main():
         report["signals"] = signals_section()
     if args.only in (None, "grinding"):
         report["grinding"] = grinding_section()
+    if args.only in (None, "kernels"):
+        with tempfile.TemporaryDirectory(prefix="bench-kernels-") as tmp:
+            report["kernels"] = kernels_section(args.quick, measure, dense_case, Path(tmp))
     report["machine"]["load_end"] = os.getloadavg()
     report["total_wall_seconds"] = time.perf_counter() - t0
     print("\nload: %.2f %.2f %.2f at the end;" % report["machine"]["load_end"],

@@ -4,8 +4,10 @@ Two launch modes share every physics function:
 - fused: one kernel runs ≥ 10⁴ steps of every mill, the time loop inside the kernel,
   one mill per CPU task (the loop is padded by PAD so that Taichi's ≥ 512-iteration
   CPU tasks put different mills on different threads: unpadded, B ≤ 512 mills share one);
-- parallel: one large mill (B = 1), one launch per phase per step, balls spread over
-  all cores. Used where the per-step work dwarfs the ≈ 30 µs launch cost.
+- parallel: one large mill (B = 1), one launch per step (its phases loops over the
+  balls on all cores), the lists rebuilt between launches when stale. Used where the
+  per-step work dwarfs the launch (≈ 35 µs, ≈ 100 µs after a step of 10⁵ balls has
+  moved Taichi's and Python's own data out of the caches).
 """
 
 
@@ -69,43 +71,83 @@ def psi_trig(F: ti.template(), b, t, dt):
     return rec[1], rec[2]
 
 
+# A frame's energy ledger sums every ball's share in own-index order, in blocks of
+# SUM_BLOCK balls: each block from 0.0, then the blocks' sums in block order. Parallel
+# mode sums the blocks on all threads and the fused mode one after another, with the
+# same additions: both modes and every thread count give the same bits, and a mill of
+# up to SUM_BLOCK balls the one running sum it always had.
+SUM_BLOCK = S.LEDGER_BLOCK
+NSUMS = 5 + S.NMECH  # kinetic, potential, elastic, drive work, dissipated, then each mechanism
+
+
 @ti.func
-def snapshot(F: ti.template(), b, t, dr):
-    """Store a frame (balls by own index) and the energy ledger (ground-frame kinetic
-    energy, m g z, stored elastic energy, drive work, dissipation), J."""
-    k = F.out.n_frames[b]
-    F.out.frame_t[b, k] = t
-    om, _, phi_p = ramp_at(F.model.plate_ramp[b], t)
-    w, _, phi_j = ramp_at(F.model.jar_ramp[b], t)
-    F.out.frame_drive[b, k] = ti.Vector([phi_p, om, phi_j, w])  # DRIVE_FIELDS order
-    ke, pe, el, dw, ds = 0.0, 0.0, 0.0, 0.0, 0.0
-    mech = ti.Vector.zero(ti.f64, S.NMECH)
-    for u in range(F.model.n_balls[b]):  # in own-index order: the sums do not depend on the rows' order
+def sum_blocks(F: ti.template(), b):
+    return (F.model.n_balls[b] + SUM_BLOCK - 1) // SUM_BLOCK
+
+
+@ti.func
+def frame_ball(F: ti.template(), b, k, u):
+    """Ball u (own index) into frame k."""
+    i = u
+    if ti.static(F.reorder):
+        i = F.state.row_of[b, u]
+    F.out.frame_x[b, k, u] = F.state.x[b, i]
+    F.out.frame_v[b, k, u] = F.state.v[b, i]
+    F.out.frame_s[b, k, u] = F.state.s[b, i]
+
+
+@ti.func
+def ledger_block(F: ti.template(), b, blk, dr):
+    """The energy sums (NSUMS: ground-frame kinetic energy, m g z, stored elastic
+    energy, drive work, dissipation, dissipation by mechanism), J, of the balls of
+    block blk, in own-index order."""
+    sums = ti.Vector.zero(ti.f64, NSUMS)
+    for u in range(blk * SUM_BLOCK, ti.min((blk + 1) * SUM_BLOCK, F.model.n_balls[b])):
         i = u
         if ti.static(F.reorder):
             i = F.state.row_of[b, u]
         x, v, s, m = F.state.x[b, i], F.state.v[b, i], F.state.s[b, i], F.model.m[b, i]
-        F.out.frame_x[b, k, u] = x
-        F.out.frame_v[b, k, u] = v
-        F.out.frame_s[b, k, u] = s
         vg = v + wall_velocity_ground(x, dr, F.model.plate_radius[b])
-        ke += 0.5 * m * vg.norm_sqr() + 0.5 * s.norm_sqr() / F.model.inv_i[b, i]
-        pe += m * F.model.gravity[b] * x[2]
-        el += F.state.elastic[b, i]
-        dw += F.state.drive_work[b, i]
-        ds += F.state.dissipated[b, i]
+        sums[0] += 0.5 * m * vg.norm_sqr() + 0.5 * s.norm_sqr() / F.model.inv_i[b, i]
+        sums[1] += m * F.model.gravity[b] * x[2]
+        sums[2] += F.state.elastic[b, i]
+        sums[3] += F.state.drive_work[b, i]
+        sums[4] += F.state.dissipated[b, i]
         for c in ti.static(range(S.NMECH)):
-            mech[c] += F.state.mech[b, i, c]
-    row = ti.Vector.zero(ti.f64, S.NLEDGER)  # the schema's ledger columns, by name
-    row[S.LEDGER["kinetic"]] = ke
-    row[S.LEDGER["potential"]] = pe
-    row[S.LEDGER["elastic"]] = el
-    row[S.LEDGER["drive_work"]] = dw
-    row[S.LEDGER["dissipated"]] = ds
+            sums[5 + c] += F.state.mech[b, i, c]
+    return sums
+
+
+@ti.func
+def frame_record(F: ti.template(), b, k, t, sums):
+    """Frame k's time, drive and energy ledger (the schema's ledger columns, by name)
+    from the blocks' total `sums`; the frame is then taken."""
+    F.out.frame_t[b, k] = t
+    om, _, phi_p = ramp_at(F.model.plate_ramp[b], t)
+    w, _, phi_j = ramp_at(F.model.jar_ramp[b], t)
+    F.out.frame_drive[b, k] = ti.Vector([phi_p, om, phi_j, w])  # DRIVE_FIELDS order
+    row = ti.Vector.zero(ti.f64, S.NLEDGER)
+    row[S.LEDGER["kinetic"]] = sums[0]
+    row[S.LEDGER["potential"]] = sums[1]
+    row[S.LEDGER["elastic"]] = sums[2]
+    row[S.LEDGER["drive_work"]] = sums[3]
+    row[S.LEDGER["dissipated"]] = sums[4]
     for c in ti.static(range(S.NMECH)):
-        row[S.LEDGER[S.MECHANISM_COLUMNS[c]]] = mech[c]
+        row[S.LEDGER[S.MECHANISM_COLUMNS[c]]] = sums[5 + c]
     F.out.frame_ledger[b, k] = row
     F.out.n_frames[b] = k + 1
+
+
+@ti.func
+def snapshot(F: ti.template(), b, t, dr):
+    """Store a frame (balls by own index) and the energy ledger, in one thread."""
+    k = F.out.n_frames[b]
+    for u in range(F.model.n_balls[b]):
+        frame_ball(F, b, k, u)
+    sums = ledger_block(F, b, 0, dr)
+    for blk in range(1, sum_blocks(F, b)):
+        sums += ledger_block(F, b, blk, dr)
+    frame_record(F, b, k, t, sums)
 
 
 @ti.func
@@ -160,50 +202,73 @@ def rebuild_fused(F: ti.template(), use_grid: ti.template()):
             rebuild_serial(F, task // PAD, use_grid)
 
 
-# ---- parallel mode (b = 0), one launch per phase
-GO, STALE, FRAME = 1, 2, 4
+# ---- parallel mode (b = 0): a step is one launch, its phases the kernel's loops
+GO, STALE = 1, 2
 
 
-@ti.kernel
-def begin_step(F: ti.template(), margin: ti.i32) -> ti.i32:
-    """0 (stop) or GO, plus STALE if the lists need a rebuild, FRAME if a frame is due."""
+@ti.func
+def flags(F: ti.template(), margin, last):
+    """0 (stop: at step `last`, done, a fault, or a buffer full) or GO, plus STALE if
+    the lists need a rebuild before the next step."""
     go = 0
-    if can_step(F, 0, margin):
+    if can_step(F, 0, margin) and F.state.step[0] < last:
         go = GO + STALE * F.spatial.rebuild[0]
-        if F.state.step[0] % F.model.frame_every[0] == 0:
-            go += FRAME
     return go
 
 
 @ti.kernel
-def frame_parallel(F: ti.template()):
-    ti.loop_config(serialize=True)
-    for _ in range(1):
-        t = F.state.step[0] * F.model.dt[0]
-        snapshot(F, 0, t, drive(F, 0, t))
+def step_flags(F: ti.template(), margin: ti.i32, last: ti.i64) -> ti.i32:
+    return flags(F, margin, last)
+
+
+step_flags.serial_kernel = True  # one thread, whatever the thread count (scripts/bench_kernels.py)
 
 
 @ti.kernel
-def forces_parallel(F: ti.template()):
+def step_parallel(F: ti.template(), margin: ti.i32, last: ti.i64, steps: ti.template()) -> ti.i32:
+    """Up to `steps` steps of the large mill in one launch (unrolled: each step's phases
+    are loops over the balls on every thread), then the flags of the next (flags). A
+    step that may not run (stop, or stale lists) does nothing, and neither do the
+    launch's later ones: the launcher rebuilds the lists or stops."""
+    for _ in ti.static(range(steps)):
+        one_step(F, margin, last)
+    return flags(F, margin, last)
+
+
+@ti.func
+def one_step(F: ti.template(), margin, last):
+    """One step of the large mill: forces, the frame if one is due, integration. The
+    scalars between the loops run on one thread: a few dozen operations a step."""
     dt = F.model.dt[0]
     st = F.state.step[0]
     t = st * dt
+    go = 0
+    if can_step(F, 0, margin) and st < last:
+        go = 1 - F.spatial.rebuild[0]
+    frame = 0
+    if st % F.model.frame_every[0] == 0:
+        frame = go
+    k = F.out.n_frames[0]
+    n = F.model.n_balls[0]
     dr = drive(F, 0, t)
-    for i in range(F.model.n_balls[0]):
+    for i in range(n * go):
         ball_forces(F, 0, i, t, dr, dt)
-
-
-@ti.kernel
-def integrate_parallel(F: ti.template()):
-    dt = F.model.dt[0]
-    t = F.state.step[0] * dt
-    dr = drive(F, 0, t)
+    for u in range(n * frame):
+        frame_ball(F, 0, k, u)
+    for blk in range(sum_blocks(F, 0) * frame):
+        F.out.ledger_part[blk] = ledger_block(F, 0, blk, dr)
+    if frame:
+        sums = F.out.ledger_part[0]
+        for blk in range(1, sum_blocks(F, 0)):
+            sums += F.out.ledger_part[blk]
+        frame_record(F, 0, k, t, sums)
     pool_settle(F, 0)
     a_frame = frame_acceleration(F, 0, dr)
-    for i in range(F.model.n_balls[0]):
+    for i in range(n * go):
         integrate(F, 0, i, dr, dt, a_frame)
         release_rows(F, 0, i)  # after the force pass, the only one that takes rows
-    F.state.step[0] += 1
+    if go:
+        F.state.step[0] = st + 1
 
 
 # ---- draining the output buffers
@@ -261,6 +326,11 @@ class Engine:
     # move): 1 (the whole buffer) 412 MiB, 8: 383, 32: 381; and with LARGE_FRAME_BYTES
     # 8 MiB instead of 16 (one frame of 10⁵ balls instead of two), 8: 376 MiB = 395 MB
     LAUNCH_EVENT_SHARE = 8
+    # parallel mode: steps per launch (step_parallel). A launch costs ≈ 100-150 µs after a
+    # step of 10⁵ balls (Taichi's and Python's own data are out of the caches by then):
+    # 3 % of a step on one thread (4.4 ms). Each step more is one more copy of the force
+    # pass to compile: 3.7 s CPU for one step, 18.2 for four (2-core AMD EPYC machine)
+    STEPS_PER_LAUNCH = 2
 
     def __init__(self, batch, balls, *, mode="fused", use_grid=True, grid_cells=1, frame_capacity=256, pool=None,
                  reorder=None, models=None):
@@ -298,16 +368,12 @@ class Engine:
         if self.mode == "fused":
             advance_fused(F, n_steps, self.margin, self.use_grid)
             return
-        for _ in range(n_steps):
-            go = begin_step(F, self.launch_margin)
-            if not go:
-                break
+        last = int(F.state.step[0]) + n_steps
+        go = step_flags(F, self.launch_margin, last)
+        while go:
             if go & STALE:
                 rebuild_parallel(F)
-            forces_parallel(F)
-            if go & FRAME:
-                frame_parallel(F)
-            integrate_parallel(F)
+            go = step_parallel(F, self.launch_margin, last, self.STEPS_PER_LAUNCH)
 
     def build_lists(self):
         """Rebuild every neighbour list now (the step does it when they go stale)."""

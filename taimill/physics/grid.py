@@ -4,6 +4,7 @@ diameter, so every touching pair lies in neighbouring cells. Ids inside a cell a
 ascending order in both builds, which makes the neighbour order, and so the force
 summation order, deterministic."""
 
+from taimill.physics.state import SCAN_BLOCK
 from taimill.physics.ti import ti
 
 
@@ -60,12 +61,32 @@ def count_cells(F: ti.template()):
         ti.atomic_add(F.spatial.cell_count[0, c], 1)
 
 
+# The prefix sum of the cell counts in three passes: each block's total (state.SCAN_BLOCK
+# cells, a thread each), the blocks' offsets (one thread over grid_cells / SCAN_BLOCK
+# blocks: 1 % of the cells), each block's own scan from its offset. Integers: the same
+# starts as one thread's running sum, on any number of threads or a GPU.
+@ti.func
+def scan_blocks(F: ti.template()):
+    return (n_cells(F, 0) + SCAN_BLOCK - 1) // SCAN_BLOCK
+
+
 @ti.kernel
 def prefix_cells(F: ti.template()):
+    for k in range(scan_blocks(F)):
+        total = 0
+        for c in range(k * SCAN_BLOCK, ti.min((k + 1) * SCAN_BLOCK, n_cells(F, 0))):
+            total += F.spatial.cell_count[0, c]
+        F.spatial.block_start[k] = total
     ti.loop_config(serialize=True)
     for _ in range(1):
         running = 0
-        for c in range(n_cells(F, 0)):
+        for k in range(scan_blocks(F)):
+            total = F.spatial.block_start[k]
+            F.spatial.block_start[k] = running
+            running += total
+    for k in range(scan_blocks(F)):
+        running = F.spatial.block_start[k]
+        for c in range(k * SCAN_BLOCK, ti.min((k + 1) * SCAN_BLOCK, n_cells(F, 0))):
             F.spatial.cell_start[0, c] = running
             running += F.spatial.cell_count[0, c]
             F.spatial.cell_count[0, c] = 0

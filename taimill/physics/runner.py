@@ -24,7 +24,7 @@ import numpy as np
 
 from taimill.errors import SimulationUnstable
 from taimill.physics import state as S
-from taimill.physics.engine import Engine, advance_fused, begin_step, export_events, export_frames
+from taimill.physics.engine import Engine, advance_fused, export_events, export_frames, step_flags, step_parallel
 from taimill.physics.mill import write_mill
 from taimill.physics.ti import cache_folder, describe, init_taichi
 from taimill.model.cost import step_seconds
@@ -295,13 +295,14 @@ class Runner:
     def _compile(self):
         """Compile the launch and drain kernels now, by calling them with nothing to do
         (no steps, no rows), so that a run's first launch is simulation only. In
-        parallel mode only the step's first kernel can be called so: its others compile
-        in the first launch, whose time the run's speed then includes."""
+        parallel mode the step is called to stop at step 0 (so it does nothing); the
+        list build compiles at the first step, whose time the run's speed then includes."""
         F, e = self.engine.F, self.engine
         if e.mode == "fused":
             advance_fused(F, 0, e.margin, e.use_grid)
         else:
-            begin_step(F, e.margin)
+            step_flags(F, e.margin, 0)
+            step_parallel(F, e.margin, 0, e.STEPS_PER_LAUNCH)
         nb = int(F.model.n_balls[0])
         export_events(F, 0, 0, np.zeros((1, S.NCOL)))
         export_frames(F, 0, 0, nb, *e._frame_arrays(0, 1, nb))

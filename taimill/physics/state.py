@@ -71,6 +71,11 @@ def pool_rows(balls: int) -> int:
     return min(balls * SLOTS, max(POOL_FLOOR, POOL_PER_BALL * balls))
 
 
+# Balls per partial sum of a frame's energy ledger (engine.SUM_BLOCK).
+LEDGER_BLOCK = 1024
+# Cells per block of the parallel prefix sum of the spatial hash (grid.prefix_cells).
+SCAN_BLOCK = 128
+
 # Status codes.
 OK, NONFINITE, ESCAPED, SLOTS_FULL, LIST_FULL, POOL_FULL = 0, 1, 2, 3, 4, 5
 
@@ -282,6 +287,8 @@ class Fields:
         B, N, spatial = self.B, self.N, self.spatial
         spatial.cell_count = ti.field(i32, (B, self.grid_cells))
         spatial.cell_start = ti.field(i32, (B, self.grid_cells))
+        blocks = -(-self.grid_cells // SCAN_BLOCK) if B == 1 else 1
+        spatial.block_start = ti.field(i32, blocks)  #: parallel mode: first cell_start of each block of cells (grid.prefix_cells)
         spatial.cell_of = ti.field(i32, (B, N))
         spatial.sorted_ids = ti.field(i32, (B, N))
         # Verlet neighbour lists
@@ -302,6 +309,9 @@ class Fields:
         out.frame_ledger = ti.Vector.field(len(LEDGER_FIELDS), f64, (B, frame_capacity))
         out.frame_drive = ti.Vector.field(len(DRIVE_FIELDS), f64, (B, frame_capacity))  #: φ_p, Ω, φ_j, w
         out.n_frames = ti.field(i32, B)
+        # parallel mode: a frame's energy sums per block of balls (engine.ledger_block)
+        blocks = -(-N // LEDGER_BLOCK) if B == 1 else 1
+        out.ledger_part = ti.Vector.field(5 + NMECH, f64, blocks)
         # energy spectra of the events closed so far [B, kind, class, measure, bin]
         # (taimill.model.spectra): events, and their energy in fixed point
         out.spectrum_count = ti.field(i64, (B, *SP.SHAPE))

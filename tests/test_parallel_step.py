@@ -1,0 +1,66 @@
+"""Parallel mode's step is one launch of a few steps whose every phase runs on all
+threads (physics/engine.py step_parallel): the cell prefix sum in blocks, the frame's
+energy ledger summed in blocks of balls. What it computes must equal the fused mode
+(one thread, the same functions) to the bit, also for mills of several blocks."""
+
+import numpy as np
+
+from taimill.model.preset import load_preset
+from taimill.model.spec import from_preset
+from taimill.physics import state as S
+from taimill.physics.runner import Runner
+from taimill.store.sinks import MemorySink
+
+
+def _thrown(n, duration, seed=1):
+    """n small balls of the CY jar thrown about from the first step."""
+    p = load_preset("presets/p4-cy-steel.toml", {"ratio": -2.6, "balls.count": n, "balls.radius_mm": 1.5,
+                                                 "analysis_start": 0.0})
+    spec = from_preset(p, duration)
+    return spec.replace(velocity=np.random.default_rng(seed).normal(0.0, 1.0, (spec.n, 3)))
+
+
+def test_a_mill_of_several_ledger_blocks_gives_the_same_bits_in_both_modes():
+    spec = _thrown(2 * S.LEDGER_BLOCK + 300, 0.004)
+    spec = spec.replace(frame_every=max(1, round(0.0005 / spec.dt)))  # a frame every 0.5 ms
+    sinks = {}
+    for mode in ("fused", "parallel"):
+        sinks[mode] = MemorySink()
+        Runner([spec], mode=mode).run([sinks[mode]])
+    fused, parallel = sinks["fused"], sinks["parallel"]
+    assert len(fused.frame_table["time"]) >= 3 and len(fused.event_table["t_start"]) > 100
+    assert fused.energy_table["kinetic"][-1] > 0.0
+    for table in ("event_table", "frame_table", "energy_table"):
+        want, got = getattr(fused, table), getattr(parallel, table)
+        assert want.keys() == got.keys()
+        for k in want:
+            np.testing.assert_array_equal(want[k], got[k], err_msg=f"{table}[{k}]")
+
+
+def test_the_blocked_prefix_sum_gives_every_cell_its_start():
+    spec = _thrown(2000, 0.001, seed=4)
+    runner = Runner([spec], mode="parallel", reorder=False)
+    runner.engine.build_lists()
+    F = runner.engine.F
+    dim = F.spatial.grid_dim.to_numpy()[0]
+    cells = int(np.prod(dim))
+    assert cells > 3 * S.SCAN_BLOCK and cells % S.SCAN_BLOCK != 0  # several blocks, the last one short
+    lo, h = F.spatial.grid_lo.to_numpy()[0], F.spatial.grid_h.to_numpy()[0]
+    x = F.state.x.to_numpy()[0, : spec.n]
+    c = np.clip(np.floor((x - lo) / h).astype(int), 0, dim - 1)
+    index = (c[:, 2] * dim[1] + c[:, 1]) * dim[0] + c[:, 0]
+    count = np.bincount(index, minlength=cells)
+    start = np.concatenate([[0], np.cumsum(count)[:-1]])
+    np.testing.assert_array_equal(F.spatial.cell_start.to_numpy()[0, :cells], start)
+    np.testing.assert_array_equal(F.spatial.cell_count.to_numpy()[0, :cells], count)
+
+
+def test_advance_takes_exactly_the_steps_asked_for():
+    spec = _thrown(200, 0.01)
+    runner = Runner([spec], mode="parallel")
+    assert runner.engine.STEPS_PER_LAUNCH > 1  # else this says nothing
+    for n in (1, 3, 2, 5):
+        before = int(runner.engine.F.state.step[0])
+        runner.engine.advance(n)
+        runner.engine.drain(0)
+        assert int(runner.engine.F.state.step[0]) == before + n

@@ -3,6 +3,12 @@ threads (physics/engine.py step_parallel): the cell prefix sum in blocks, the fr
 energy ledger summed in blocks of balls. What it computes must equal the fused mode
 (one thread, the same functions) to the bit, also for mills of several blocks."""
 
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 
 from taimill.model.preset import load_preset
@@ -10,6 +16,8 @@ from taimill.model.spec import from_preset
 from taimill.physics import state as S
 from taimill.physics.runner import Runner
 from taimill.store.sinks import MemorySink
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def _thrown(n, duration, seed=1):
@@ -64,3 +72,27 @@ def test_advance_takes_exactly_the_steps_asked_for():
         runner.engine.advance(n)
         runner.engine.drain(0)
         assert int(runner.engine.F.state.step[0]) == before + n
+
+
+MEMORY_SCRIPT = """
+import json
+from taimill.physics.engine import Engine
+from taimill.physics.ti import init_taichi
+init_taichi(1)
+n = 1_000_000
+# the most cells a mill's grid gets: 8 per ball (model.spec.grid_for), rounded up to a power of two (Runner)
+engine = Engine(1, n, mode="parallel", grid_cells=1 << (8 * n).bit_length())
+print(json.dumps(dict(mode=engine.mode, bytes=engine.F.nbytes())))
+"""
+
+
+def test_a_mill_of_a_million_balls_fits_in_two_gigabytes_of_device_memory():
+    # declared, never allocated: a subprocess, since Taichi would allocate every declared
+    # field at this process's next kernel
+    env = os.environ | {"PYTHONPATH": str(ROOT)}
+    out = subprocess.run([sys.executable, "-c", MEMORY_SCRIPT], cwd=ROOT, env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    assert r["mode"] == "parallel"
+    assert 1.0e9 < r["bytes"] <= 2.0e9  # 1.37 GB when written; 1 GB would mean a field was missed

@@ -6,6 +6,8 @@ structures (`F.spatial`) and output buffers (`F.out`). The sizes and the compile
 contact models stay on the Fields object itself. Shapes in brackets, SI units.
 """
 
+import math
+
 from taimill.model.contact.registry import contact_model, law_by_name
 from taimill.model.geometry import MAX_PIECES, PIECE_COLUMNS
 from taimill.model import spectra as SP
@@ -316,6 +318,17 @@ class Fields:
         # (taimill.model.spectra): events, and their energy in fixed point
         out.spectrum_count = ti.field(i64, (B, *SP.SHAPE))
         out.spectrum_fixed = ti.field(i64, (B, *SP.SHAPE))
+
+    def nbytes(self) -> int:
+        """Bytes of every field (what the device holds for these mills: Taichi
+        allocates them when a kernel first runs). 10⁶ balls in parallel mode with the
+        thesis' contact model: 1.27 GB (tests/test_parallel_step.py)."""
+        total = 0
+        for group in GROUPS:
+            for fld in vars(getattr(self, group)).values():
+                wide = fld.dtype in (f64, i64)
+                total += math.prod(fld.shape) * getattr(fld, "n", 1) * getattr(fld, "m", 1) * (8 if wide else 4)
+        return total
 
     def field(self, name: str):
         """The field called `name`, in whichever group holds it."""

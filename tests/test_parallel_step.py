@@ -20,9 +20,9 @@ from taimill.store.sinks import MemorySink
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _thrown(n, duration, seed=1):
+def _thrown(n, duration, seed=1, radius_mm=1.5):
     """n small balls of the CY jar thrown about from the first step."""
-    p = load_preset("presets/p4-cy-steel.toml", {"ratio": -2.6, "balls.count": n, "balls.radius_mm": 1.5,
+    p = load_preset("presets/p4-cy-steel.toml", {"ratio": -2.6, "balls.count": n, "balls.radius_mm": radius_mm,
                                                  "analysis_start": 0.0})
     spec = from_preset(p, duration)
     return spec.replace(velocity=np.random.default_rng(seed).normal(0.0, 1.0, (spec.n, 3)))
@@ -46,13 +46,14 @@ def test_a_mill_of_several_ledger_blocks_gives_the_same_bits_in_both_modes():
 
 
 def test_the_blocked_prefix_sum_gives_every_cell_its_start():
-    spec = _thrown(2000, 0.001, seed=4)
+    spec = _thrown(12_000, 0.001, seed=4, radius_mm=0.5)  # 88 412 cells
     runner = Runner([spec], mode="parallel", reorder=False)
     runner.engine.build_lists()
     F = runner.engine.F
     dim = F.spatial.grid_dim.to_numpy()[0]
     cells = int(np.prod(dim))
-    assert cells > 3 * S.SCAN_BLOCK and cells % S.SCAN_BLOCK != 0  # several blocks, the last one short
+    # several groups of blocks, the last group and block short
+    assert cells > S.SCAN_BLOCK**2 and cells % S.SCAN_BLOCK != 0 and (cells // S.SCAN_BLOCK) % S.SCAN_BLOCK != 0
     lo, h = F.spatial.grid_lo.to_numpy()[0], F.spatial.grid_h.to_numpy()[0]
     x = F.state.x.to_numpy()[0, : spec.n]
     c = np.clip(np.floor((x - lo) / h).astype(int), 0, dim - 1)

@@ -61,32 +61,53 @@ def count_cells(F: ti.template()):
         ti.atomic_add(F.spatial.cell_count[0, c], 1)
 
 
-# The prefix sum of the cell counts in three passes: each block's total (state.SCAN_BLOCK
-# cells, a thread each), the blocks' offsets (one thread over grid_cells / SCAN_BLOCK
-# blocks: 1 % of the cells), each block's own scan from its offset. Integers: the same
-# starts as one thread's running sum, on any number of threads or a GPU.
+# The prefix sum of the cell counts in three levels: cells in blocks of SCAN_BLOCK, blocks
+# in groups of SCAN_BLOCK. Each block's and each group's total, then the groups' offsets
+# (one thread, over cells / SCAN_BLOCK² groups: a few dozen), then each group's blocks
+# and each block's cells from their offsets; every pass but the short one a thread per
+# block or group. Integers: the same starts as one running sum, on any number of
+# threads or a GPU (where one thread over every cell or block would take milliseconds).
 @ti.func
-def scan_blocks(F: ti.template()):
-    return (n_cells(F, 0) + SCAN_BLOCK - 1) // SCAN_BLOCK
+def span(k, n):
+    """Items [k SCAN_BLOCK, min((k + 1) SCAN_BLOCK, n)) of block k."""
+    return k * SCAN_BLOCK, ti.min((k + 1) * SCAN_BLOCK, n)
 
 
 @ti.kernel
 def prefix_cells(F: ti.template()):
-    for k in range(scan_blocks(F)):
+    cells = n_cells(F, 0)
+    blocks = (cells + SCAN_BLOCK - 1) // SCAN_BLOCK
+    groups = (blocks + SCAN_BLOCK - 1) // SCAN_BLOCK
+    for k in range(blocks):
+        lo, hi = span(k, cells)
         total = 0
-        for c in range(k * SCAN_BLOCK, ti.min((k + 1) * SCAN_BLOCK, n_cells(F, 0))):
+        for c in range(lo, hi):
             total += F.spatial.cell_count[0, c]
         F.spatial.block_start[k] = total
+    for g in range(groups):
+        lo, hi = span(g, blocks)
+        total = 0
+        for k in range(lo, hi):
+            total += F.spatial.block_start[k]
+        F.spatial.group_start[g] = total
     ti.loop_config(serialize=True)
     for _ in range(1):
         running = 0
-        for k in range(scan_blocks(F)):
+        for g in range(groups):
+            total = F.spatial.group_start[g]
+            F.spatial.group_start[g] = running
+            running += total
+    for g in range(groups):
+        lo, hi = span(g, blocks)
+        running = F.spatial.group_start[g]
+        for k in range(lo, hi):
             total = F.spatial.block_start[k]
             F.spatial.block_start[k] = running
             running += total
-    for k in range(scan_blocks(F)):
+    for k in range(blocks):
+        lo, hi = span(k, cells)
         running = F.spatial.block_start[k]
-        for c in range(k * SCAN_BLOCK, ti.min((k + 1) * SCAN_BLOCK, n_cells(F, 0))):
+        for c in range(lo, hi):
             F.spatial.cell_start[0, c] = running
             running += F.spatial.cell_count[0, c]
             F.spatial.cell_count[0, c] = 0

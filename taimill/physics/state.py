@@ -75,8 +75,9 @@ def pool_rows(balls: int) -> int:
 
 # Balls per partial sum of a frame's energy ledger (engine.SUM_BLOCK).
 LEDGER_BLOCK = 1024
-# Cells per block of the parallel prefix sum of the spatial hash (grid.prefix_cells).
-SCAN_BLOCK = 128
+# Cells per block, and blocks per group, of the parallel prefix sum of the spatial hash
+# (grid.prefix_cells).
+SCAN_BLOCK = 256
 
 # Status codes.
 OK, NONFINITE, ESCAPED, SLOTS_FULL, LIST_FULL, POOL_FULL = 0, 1, 2, 3, 4, 5
@@ -291,6 +292,7 @@ class Fields:
         spatial.cell_start = ti.field(i32, (B, self.grid_cells))
         blocks = -(-self.grid_cells // SCAN_BLOCK) if B == 1 else 1
         spatial.block_start = ti.field(i32, blocks)  #: parallel mode: first cell_start of each block of cells (grid.prefix_cells)
+        spatial.group_start = ti.field(i32, -(-blocks // SCAN_BLOCK))  #: and of each group of blocks
         spatial.cell_of = ti.field(i32, (B, N))
         spatial.sorted_ids = ti.field(i32, (B, N))
         # Verlet neighbour lists

@@ -1130,12 +1130,14 @@ def dense_million(tmp: Path) -> dict:
     return r | dict(steps=summary["steps"], run_wall=summary.get("wall_seconds"))
 
 
-def dense_section(quick: bool, million: bool = True) -> list[dict]:
+def dense_section(quick: bool, million: bool = True, only: str | None = None) -> list[dict]:
+    """`only`: the cases whose name contains it (and no 10⁶ run)."""
     import shutil
 
     if not shutil.which("liggghts"):
         print("\n5. Dense beds: liggghts not on PATH, LIGGGHTS rows skipped")
-    cases = QUICK_DENSE_CASES if quick else DENSE_CASES
+    cases = [c for c in (QUICK_DENSE_CASES if quick else DENSE_CASES) if only is None or only in c["case"]]
+    million = million and only is None
     print(f"\n5. Dense beds: steel balls (r = {DENSE_RADIUS_MM:g} mm) on lattices of pitch 2r + {DENSE_GAP:g} m in a"
           " cylinder, Hertz e = 0.516, μ = 0.8, dt = 1 µs; taimill and LIGGGHTS 3.8 end to end through their"
           f" command lines, one core each (taimill: a warm-up run first; up to {DENSE_REPEAT_UP_TO} balls the best of"
@@ -1353,6 +1355,7 @@ def main():
                                        "signals", "grinding", "kernels"),
                     help="run one section")
     ap.add_argument("--skip-million", action="store_true", help="dense beds: skip the taimill run of 10⁶ balls")
+    ap.add_argument("--case", help="dense beds: only the cases whose name contains this ('sc 100000')")
     ap.add_argument("--json", type=Path, metavar="FILE", help="write every number to FILE")
     ap.add_argument("--ab", type=Path, metavar="DIR", help="only section 8: this checkout against the one in DIR"
                     " (e.g. `git worktree add DIR HEAD~1`), interleaved")
@@ -1381,7 +1384,7 @@ def main():
     if args.only in (None, "sweep"):
         report["sweep"] = sweep_section(args.quick)
     if args.only in (None, "dense"):
-        report["dense"] = dense_section(args.quick, not args.skip_million)
+        report["dense"] = dense_section(args.quick, not args.skip_million, args.case)
     if args.only in (None, "presets"):
         report["presets"] = presets_section(QUICK_DURATION if args.quick else FULL_DURATION)
     if args.only in (None, "trajectory"):

@@ -131,7 +131,9 @@ def shares(r: dict) -> dict:
                 step_ms=total / r["steps"] * 1e3)
 
 
-def kernels_section(quick: bool, measure, dense_case, tmp) -> list[dict]:
+def kernels_section(quick: bool, measure, dense_case, tmp, threads: int = 2) -> list[dict]:
+    """The rows at 1 thread (static bed and drum), then the static bed's parallel
+    efficiency on `threads` threads (the same steps)."""
     n = QUICK_BALLS if quick else N_BALLS
     print(f"\n11. The step's kernels, one mill of {n} balls, one thread (frames every {FRAME_EVERY} steps;"
           f" {TIMED_STEPS} steps after {WARM_STEPS}); serial share target ≤ {SERIAL_LIMIT:.0%} at 10⁵")
@@ -156,4 +158,14 @@ def kernels_section(quick: bool, measure, dense_case, tmp) -> list[dict]:
                 tag = "serial" if name in r["serial"] else ""
                 print(f"    {name:22s} {v['calls']:6d} calls {1e6 * v['seconds'] / v['calls']:10.1f} µs each"
                       f" {share:7.2%}  {tag}")
+    one = next((r for r in rows if r["case"].startswith("sc") and "error" not in r), None)
+    if one and threads > 1:
+        case = dense_case(tmp, n, drum=False, lattice="sc")
+        r = measure(dict(kind="kernels", preset=str(case), drum=False, threads=threads, warm=WARM_STEPS,
+                         steps=TIMED_STEPS, frame_every=FRAME_EVERY), timeout=3600)
+        if "error" not in r:
+            eff = (one["wall"] / one["steps"]) / (r["threads"] * r["wall"] / r["steps"])
+            rows.append(dict(case=f"sc bed {n}, {r['threads']} threads", efficiency=eff, **r))
+            print(f"  sc bed {n} on {r['threads']} threads: {1e3 * r['wall'] / r['steps']:.2f} ms a step, parallel"
+                  f" efficiency {eff:.2f} (wall on 1 thread / ({r['threads']} × wall on {r['threads']}))")
     return rows

@@ -58,6 +58,8 @@ def select(option: str | None) -> str:
     global _told
     if option is None:
         name, source, key = requested()
+    elif not option.strip():  # given, but blank: no choice at all (a blank variable is unset)
+        raise ConfigError("command line", OPTION, option, ALLOWED)
     else:
         name, source, key = choose(option, "command line", OPTION), "command line", OPTION
     if name == "cuda" and not cuda_devices():

@@ -133,3 +133,31 @@ def test_the_choice_resolves_in_order(monkeypatch):
     assert backend.arch() == "cuda"
     with pytest.raises(ValueError, match=r"command line: --backend = 'opencl': one of cpu"):
         backend.select("opencl")
+
+
+def test_the_summary_comparison_of_the_gpu_tests_sees_every_key():
+    """tests/test_gpu.py and the device check compare a CUDA run's summary with the CPU's
+    by scripts/device_check.summary_difference: nested numbers, text and event counts
+    count, the machine's keys do not."""
+    sys.path.insert(0, str(ROOT / "scripts"))
+    from device_check import TOLERANCE, agrees, summary_difference
+
+    a = {"events": 10, "mean_se": 1.0, "all_contacts": {"events": 12, "mean_se": 2.0}, "regime": "cascading",
+         "analysis_window": [0.5, 2.0], "wall_seconds": 3.0, "compute": {"backend": "cuda"}, "nothing": None}
+    same = json.loads(json.dumps(a)) | {"wall_seconds": 9.0, "compute": {"backend": "cpu"}}
+    assert summary_difference(a, same) | {"events": None} == dict(
+        max_rel=0.0, worst_key=None, unequal=[], events_equal=True, event_counts=2, events=None)
+    near = json.loads(json.dumps(a))
+    near["all_contacts"]["mean_se"] = 2.0 * (1 + 3e-10)
+    d = summary_difference(a, near)
+    assert d["worst_key"] == "all_contacts.mean_se" and d["max_rel"] == pytest.approx(3e-10, rel=1e-3) and agrees(d)
+    near["analysis_window"][1] = 2.0 * (1 + 10 * TOLERANCE)
+    d = summary_difference(a, near)
+    assert d["worst_key"] == "analysis_window.1" and not agrees(d)
+    counted = json.loads(json.dumps(a))
+    counted["all_contacts"]["events"] = 13
+    assert not summary_difference(a, counted)["events_equal"]
+    worded = json.loads(json.dumps(a)) | {"regime": "cataracting"}
+    missing = {k: v for k, v in a.items() if k != "mean_se"}
+    assert summary_difference(a, worded)["unequal"] == ["regime"]
+    assert summary_difference(a, missing)["unequal"] == ["mean_se"] and not agrees(summary_difference(a, missing))

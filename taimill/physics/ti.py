@@ -248,7 +248,7 @@ def init_taichi(threads: int | None = None, share: int = 1):
         try:
             ti.init(arch=getattr(ti, arch), default_fp=ti.f64, default_ip=ti.i32, offline_cache=True,
                     fast_math=False, log_level=level, **kw)
-        except RuntimeError as err:  # the device's memory taken by other processes, a driver too old
+        except Exception as err:  # the device's memory taken by other processes, a driver too old (not seen yet)
             if arch != "cuda":
                 raise
             _, source, key = backend.requested()

@@ -13,15 +13,16 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
-pack=".device/$($PY -c 'import sys; print("py%d%d" % sys.version_info[:2])')"
-if [ -f "$pack.zip" ] && [ ! -d "$pack" ]; then  # unpacked once, beside the zip (seconds)
-    rm -rf "$pack.partial"
-    $PY -m zipfile -e "$pack.zip" "$pack.partial" && mv "$pack.partial" "$pack"
+zip=".device/$($PY -c 'import sys; print("py%d%d" % sys.version_info[:2])').zip"
+if [ -f "$zip" ]; then  # unpacked once, outside the tree (.device must stay small enough to travel)
+    site="${TMPDIR:-/tmp}/taimill-device-$(cksum < "$zip" | cut -d' ' -f1)"
+    if [ ! -d "$site" ]; then
+        rm -rf "$site.partial"
+        $PY -m zipfile -e "$zip" "$site.partial" && mv "$site.partial" "$site"
+    fi
+    export PYTHONPATH="$site${PYTHONPATH:+:$PYTHONPATH}"
 fi
-if [ -d "$pack" ]; then
-    export PYTHONPATH="$PWD/$pack${PYTHONPATH:+:$PYTHONPATH}"
-fi
-if ! $PY -c 'import taichi, zarr' 2>/dev/null; then
+if ! $PY -c 'import taichi, zarr' >/dev/null 2>&1; then
     echo "device_check: $PY cannot import taichi and zarr; run scripts/device_pack.sh on a machine with a network" \
          "and carry .device (found: $(ls .device 2>/dev/null | tr '\n' ' '))" >&2
     exit 2

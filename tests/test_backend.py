@@ -101,23 +101,42 @@ def test_naming_the_default_changes_no_bit(tmp_path):
     assert keep(a.summary) == keep(b.summary)
 
 
-def test_taichis_silent_fall_back_to_the_cpu_is_refused(tmp_path):
-    """Taichi started with arch=cuda where it finds no device warns and runs on the CPU:
-    init_taichi checks where it really started. Here the driver check is told a device
-    exists, so that Taichi's own fall-back is what is caught."""
+FALLBACK = """
+import os, sys
+from taimill.physics import backend, ti
+if backend.cuda_devices():
+    print("a device")  # Taichi would start on it
+    sys.exit(0)
+backend.cuda_devices = lambda: ("Pretend GPU",)
+os.environ[backend.ENV] = sys.argv[1]
+try:
+    ti.init_taichi()
+except ValueError as err:
+    print(err)
+    sys.exit(2)
+print("started on", backend.current()["backend"])
+"""
+
+
+def _pretend_a_device(tmp_path, name: str) -> subprocess.CompletedProcess:
+    """init_taichi asked for `name` in a process whose driver check is told a device
+    exists, so that Taichi's own fall-back to the CPU is what happens."""
     script = tmp_path / "fallback.py"
-    script.write_text(
-        "import os, sys\nfrom taimill.physics import backend, ti\n"
-        "if backend.cuda_devices():\n    print('a device')  # Taichi would start on it\n    sys.exit(0)\n"
-        "backend.cuda_devices = lambda: ('Pretend GPU',)\nos.environ[backend.ENV] = 'cuda'\n"
-        "try:\n    ti.init_taichi()\nexcept ValueError as err:\n    print(err)\n    sys.exit(2)\n"
-        "print('started on', ti.internal('lang.impl').current_cfg().arch)\n")
-    res = subprocess.run([sys.executable, str(script)], cwd=ROOT, capture_output=True, text=True, timeout=300,
+    script.write_text(FALLBACK)
+    res = subprocess.run([sys.executable, str(script), name], cwd=ROOT, capture_output=True, text=True, timeout=300,
                          env=os.environ | {"PYTHONPATH": str(ROOT)})
     if res.stdout.strip() == "a device":
         pytest.skip("a CUDA device is found here")
+    return res
+
+
+def test_taichis_silent_fall_back_to_the_cpu_is_refused_for_cuda_and_taken_for_auto(tmp_path):
+    res = _pretend_a_device(tmp_path, "cuda")
     assert res.returncode == 2, res.stderr
     assert "did not start on the CUDA device Pretend GPU" in res.stdout and "--backend cpu" in res.stdout
+    res = _pretend_a_device(tmp_path, "auto")
+    assert res.returncode == 0 and res.stdout.strip() == "started on cpu", res.stdout + res.stderr
+    assert res.stderr == ""  # quietly
 
 
 def test_the_choice_resolves_in_order(monkeypatch):

@@ -244,18 +244,23 @@ def init_taichi(threads: int | None = None, share: int = 1):
     if arch == "cuda":
         kw["device_memory_fraction"] = DEVICE_MEMORY_FRACTION / max(1, int(share))
     os.environ.pop("TI_ARCH", None)  # Taichi's own choice of arch would override the backend's
-    with contextlib.redirect_stdout(io.StringIO() if quiet else sys.stderr):
-        try:
+    asked, source, key = backend.requested()
+
+    def start(arch):
+        with contextlib.redirect_stdout(io.StringIO() if quiet else sys.stderr):
             ti.init(arch=getattr(ti, arch), default_fp=ti.f64, default_ip=ti.i32, offline_cache=True,
                     fast_math=False, log_level=level, **kw)
-        except Exception as err:  # the device's memory taken by other processes, a driver too old (not seen yet)
-            if arch != "cuda":
-                raise
-            _, source, key = backend.requested()
-            raise ConfigError(source, key, "cuda", f"Taichi could not start on {backend.cuda_devices()[0]} ({err}); "
+
+    try:
+        start(arch)
+    except Exception as err:  # the device's memory taken by other processes, a driver too old (not seen yet)
+        if arch != "cuda":
+            raise
+        if asked != "auto":
+            raise ConfigError(source, key, asked, f"Taichi could not start on {backend.cuda_devices()[0]} ({err}); "
                               "use --backend cpu") from None
-    if arch == "cuda" and internal("lang.impl").current_cfg().arch != ti.cuda:  # a Taichi built without CUDA
-        _, source, key = backend.requested()
-        raise ConfigError(source, key, "cuda", f"{describe()} did not start on the CUDA device "
+        start("cpu")  # auto: the CPU, without a word
+    if asked == "cuda" and internal("lang.impl").current_cfg().arch != ti.cuda:  # a Taichi built without CUDA
+        raise ConfigError(source, key, asked, f"{describe()} did not start on the CUDA device "
                           f"{backend.cuda_devices()[0]} (built without CUDA?); use --backend cpu")
     _initialised = True

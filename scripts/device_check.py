@@ -192,7 +192,7 @@ class Check:
         diff = QUICK_DIFF_SECONDS if self.args.quick else DIFF_SECONDS[n]
         cores = os.cpu_count() or 1
         need = {(b, t): max(20, round(diff / (expected_ns(b, t or cores, n) * 1e-9 * n))) for _, b, t in self.configs()}
-        n1 = math.ceil(max(need.values()) / 2)  # the slowest's N2 − N1 is 2 N1: its runs N1, N1, 3 N1
+        n1 = math.ceil(min(need.values()) / 2)  # the slowest's N2 − N1 is 2 N1: its runs N1, N1, 3 N1
         preset = bed_preset(self.tmp, n, n1)
         firsts, one = [], None
         for label, backend, threads in self.configs():

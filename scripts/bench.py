@@ -105,7 +105,8 @@ are the per-core figures to quote; wall figures then measure the machine's load.
    from the one in DIR, interleaved rounds in one run, best of each: a change's
    before/after on the same machine at the same time.
 
-    scripts/bench.py [--quick] [--only reference|scaling|recording|sweep|dense|presets|trajectory|signals|grinding|kernels] [--skip-million] [--json FILE]
+    scripts/bench.py [--quick] [--only reference|scaling|recording|sweep|dense|presets|trajectory|signals|grinding|kernels]
+                     [--case NAME] [--skip-million] [--backend cpu|cuda|auto] [--json FILE]
     scripts/bench.py --ab DIR
 """
 
@@ -443,7 +444,8 @@ def machine() -> dict:
     return dict(
         cpus=os.cpu_count(), processor=cpu_model(), machine=platform.machine(), platform=platform.platform(),
         python=platform.python_version(), taichi=taichi_version(),
-        numpy=importlib.metadata.version("numpy"), mem_total_mib=meminfo_mib("MemTotal"),
+        numpy=importlib.metadata.version("numpy"), backend=os.environ.get("TAIMILL_BACKEND") or "cpu",
+        mem_total_mib=meminfo_mib("MemTotal"),
         mem_available_mib=meminfo_mib("MemAvailable"), load_start=os.getloadavg(),
     )
 
@@ -452,7 +454,7 @@ def print_machine(m: dict):
     print(f"taimill benchmark, {time.strftime('%Y-%m-%d %H:%M:%S')}")
     print(f"machine:  {m['cpus']} CPUs (os.cpu_count), {m['processor']}, {m['machine']}, {m['platform']}")
     print(f"memory:   {m['mem_total_mib'] / 1024:.1f} GiB, {m['mem_available_mib'] / 1024:.1f} GiB available")
-    print(f"software: Python {m['python']}, {m['taichi']}, numpy {m['numpy']}")
+    print(f"software: Python {m['python']}, {m['taichi']}, numpy {m['numpy']}; backend {m['backend']}")
     print("load:     %.2f %.2f %.2f (1, 5, 15 min averages at start)" % m["load_start"])
 
 
@@ -1361,11 +1363,20 @@ def main():
                     " (e.g. `git worktree add DIR HEAD~1`), interleaved")
     ap.add_argument("--ab-rounds", type=int, help=f"rounds of --ab (default {AB_ROUNDS})")
     ap.add_argument("--ab-cases", choices=("both", "cy", "bed"), default="both", help="cases of --ab")
+    ap.add_argument("--backend", help="where taimill's kernels run: cpu (default), cuda or auto; every worker and "
+                    "`taimill run` child inherits it (TAIMILL_BACKEND)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
         worker_main(args.worker)
         return
+    if args.backend:
+        from taimill.physics.backend import ENV, select
+
+        try:
+            select(args.backend)  # TAIMILL_BACKEND, which start_taichi's workers and the dense runs inherit
+        except ValueError as err:
+            sys.exit(f"bench.py: {err}")
     t0 = time.perf_counter()
     report = dict(machine=machine(), quick=args.quick)
     print_machine(report["machine"])

@@ -283,6 +283,13 @@ VALUES = [
     ("run --rrd a folder", ["run", PRESET, "--rrd", "{work}/adir.rrd", "--overwrite"], ["--rrd", "folder"]),
     # tui: its own options and the overrides a live mill takes
     ("tui --duration not taken", TUI + ["--duration", "3"], ["unrecognized", "--duration"]),
+    # the backend: a name that is none, on every command that runs kernels (cuda without a device: test_backend.py)
+    ("run --backend unknown", RUN + ["--backend", "gpu"], ["--backend", "'gpu'", "one of cpu", "cuda", "auto"]),
+    ("sweep --backend unknown", SWEEP + ["--ratio", "-2", "--backend", "opencl"], ["--backend", "'opencl'", "one of cpu"]),
+    ("design --backend unknown", ["design", PRESET, "--out", "{work}/study", "--backend", "metal"],
+     ["--backend", "'metal'", "one of cpu"]),
+    ("tui --backend unknown", TUI + ["--backend", "vulkan"], ["--backend", "'vulkan'", "one of cpu"]),
+    ("run --backend empty", RUN + ["--backend", ""], ["--backend", "one of cpu"]),
     ("tui --analysis-start not taken", TUI + ["--analysis-start", "1"], ["unrecognized", "--analysis-start"]),
     ("tui --window 0", TUI + ["--window", "0"], ["--window", "[0.1, 600]"]),
     ("tui --window 1e9", TUI + ["--window", "1e9"], ["--window", "[0.1, 600]"]),

@@ -35,7 +35,7 @@ PRESET = "presets/p4-cy-steel.toml"
 # chunks of B = 2 mills with different automatic dt share one kernel, on 2 processes.
 SWEEP = ("sweep", PRESET, "--ratio", "-2:-3:0.5", "--replicas", 2, "--duration", 0.3, "--batch", 2,
          "--refine", "--refine-metric", "mean_se", "--refine-rounds", 1)
-TIMING = {"wall_seconds", "realtime_factor", "batch"}
+TIMING = {"wall_seconds", "realtime_factor", "batch", "compute"}  # compute: a sweep's workers run one thread each
 
 
 def taimill(*args):

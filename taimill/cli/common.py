@@ -145,6 +145,21 @@ def add_overrides(p, live: bool = False):
                         "(a longer time step; docs/softening.md says what it changes)")
 
 
+def add_backend(p) -> None:
+    """--backend: where the kernels run (taimill.physics.backend)."""
+    p.add_argument("--backend", metavar="NAME",
+                   help="where the kernels run: cpu (default), cuda (the first CUDA device) or auto (cuda where one "
+                        "is found, else cpu); the command line wins over TAIMILL_BACKEND (docs/performance.md, backends)")
+
+
+def backend(a) -> str:
+    """The backend --backend (else TAIMILL_BACKEND) names, checked before anything runs
+    and handed on to the processes this one spawns (physics.backend.select)."""
+    from taimill.physics.backend import select
+
+    return select(getattr(a, "backend", None))
+
+
 def stations_text(n) -> str:
     """"1 station", "4 stations"."""
     return f"{n} station" if n == 1 else f"{n} stations"

@@ -12,7 +12,7 @@ import sqlite3
 import sys
 from pathlib import Path
 
-from taimill.cli.common import DEFAULT_PRESET, LAW_HELP, PRESET_HELP, integer, name_text, number, path_text
+from taimill.cli.common import DEFAULT_PRESET, LAW_HELP, PRESET_HELP, add_backend, backend, integer, name_text, number, path_text
 from taimill.errors import ConfigError
 
 THESIS_JARS = "HM,1L,3L,T,CY"
@@ -55,6 +55,7 @@ def register(sub) -> None:
     d.add_argument("--workers", type=integer, help="local worker processes (default: one per core)")
     d.add_argument("--scheduler", metavar="ADDRESS", type=name_text, help="dask.distributed scheduler, e.g. tcp://host:8786")
     d.add_argument("--json", action="store_true", help="print the summary as JSON instead of markdown")
+    add_backend(d)
     o = d.add_argument_group("run overrides (every run)")
     o.add_argument("--duration", type=number, default=4.0, help="simulated seconds per short run (default 4)")
     o.add_argument("--analysis-start", type=number, default=1.0, help="start of the analysis window, s (default 1: after the 1 s start-up)")
@@ -247,6 +248,7 @@ def cmd_design(a) -> int:
     from taimill.design import report
     from taimill.design.study import Study, evaluate_references
 
+    backend(a)  # the local workers inherit it
     s = settings_of(a)
     from taimill.model.preset import load_preset
 

@@ -6,8 +6,8 @@ import json
 import sys
 from pathlib import Path
 
-from taimill.cli.common import (EXIT_UNSTABLE, DEFAULT_PRESET, PRESET_HELP, add_overrides, overrides, path_text, plain, stderr_console,
-                                summary_table)
+from taimill.cli.common import (EXIT_UNSTABLE, DEFAULT_PRESET, PRESET_HELP, add_backend, add_overrides, backend, overrides, path_text,
+                                plain, stderr_console, summary_table)
 from taimill.model.cost import run_seconds
 
 
@@ -20,6 +20,7 @@ def register(sub) -> None:
     r.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
     r.add_argument("--yes", action="store_true", help="run even when the estimate is over an hour of CPU (else refused)")
     r.add_argument("--dry-run", action="store_true", help="check everything and print the run's estimate; simulate nothing")
+    add_backend(r)
     add_overrides(r)
     r.set_defaults(fn=cmd_run)
 
@@ -30,6 +31,7 @@ def cmd_run(a) -> int:
     from taimill.model.preset import load_preset
     from taimill.cli.common import print_warnings
 
+    backend(a)
     show_bar = sys.stderr.isatty()  # a bar on a pipe or log file draws nothing but leaves a blank line
     with reads() as inputs:  # the preset and every file it names: no output may replace them
         if sys.stderr.isatty():  # reading and checking 10⁵-10⁶ start positions takes seconds (on a

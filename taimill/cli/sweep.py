@@ -10,7 +10,7 @@ import json
 import math
 import sys
 
-from taimill.cli.common import LAW_HELP, DEFAULT_PRESET, PRESET_HELP, integer, name_text, number, path_text
+from taimill.cli.common import LAW_HELP, DEFAULT_PRESET, PRESET_HELP, add_backend, backend, integer, name_text, number, path_text
 from taimill.errors import ConfigError
 
 REFINE_METRICS = ("mean_se", "mean_se_normal", "mean_se_tangential", "impact_power", "impact_power_normal",
@@ -66,6 +66,7 @@ def register(subparsers) -> None:
     x.add_argument("--workers", type=integer, help="local worker processes (default: one per core)")
     x.add_argument("--batch", type=integer, help="mills per kernel, B (default: 1 for small sweeps, see sweep.auto_batch)")
     x.add_argument("--scheduler", metavar="ADDRESS", type=name_text, help="dask.distributed scheduler, e.g. tcp://host:8786")
+    add_backend(x)
     s.add_argument("--out", type=path_text, help="sweep store to write (SWEEP.zarr); the same command resumes it")
     s.add_argument("--map", type=path_text, metavar="MAP.png",
                    help="draw the (K, μ) regime map of the sweep (sweep --ratio and --mu; docs/regimes.md)")
@@ -123,6 +124,7 @@ def cmd_sweep(a) -> int:
     from taimill.analysis.sweep import axis_header
     from taimill.runs.sweep import plan
 
+    backend(a)  # the local workers inherit it (a dask cluster's workers: TAIMILL_BACKEND where they run)
     req, run_kw = request(a)
     with reads() as inputs:
         points = plan(req)  # every point validated before a store is touched or a kernel runs

@@ -8,7 +8,7 @@ import traceback
 
 
 def register(subparsers):
-    from taimill.cli.common import DEFAULT_PRESET, PRESET_HELP, add_overrides as _add_overrides, number, path_text
+    from taimill.cli.common import DEFAULT_PRESET, PRESET_HELP, add_backend, add_overrides as _add_overrides, number, path_text
 
     t = subparsers.add_parser("tui", help="live terminal UI: tune Ω, the jar speed and friction of a running mill")
     t.add_argument("preset", type=path_text, nargs="?", default=DEFAULT_PRESET, help=PRESET_HELP)
@@ -16,13 +16,16 @@ def register(subparsers):
                    help="folder for recordings (.rrd, .zarr) and PNG snapshots, created if needed (default .)")
     t.add_argument("--window", type=number, default=4.0, help="sliding window of the readouts, simulated s (default 4)")
     t.add_argument("--paused", action="store_true", help="start paused")
+    add_backend(t)
     _add_overrides(t, live=True)  # the mill runs until quit: no --duration, --analysis-start
     t.set_defaults(fn=cmd_tui)
 
 
 def cmd_tui(a) -> int:
-    from taimill.cli.common import overrides as _overrides
+    from taimill.cli.common import backend, overrides as _overrides
     from taimill.errors import ConfigError
+
+    backend(a)
     from taimill.model.preset import load_preset
 
     if not 0.1 <= a.window <= 600:

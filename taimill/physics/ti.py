@@ -189,13 +189,35 @@ def return_freed_memory():
             pass
 
 
-def init_taichi(threads: int | None = None):
-    """ti.init once per process (a second call invalidates fields). Serial loops and
-    f64 make results bit-identical run to run (tests/test_runs.py); without fast-math the
-    compiler may not contract or reassociate, so both launch modes agree to the bit."""
+# Taichi's CUDA backend keeps every field in one buffer it reserves at ti.init: 1 GB by
+# default (device_memory_GB), or device_memory_fraction of the device's whole memory
+# when that is set (taichi 1.7's LlvmRuntimeExecutor::materialize_runtime; a field that
+# does not fit stops the kernel with "Out of CUDA pre-allocated memory"). A large mill's
+# fields take about 1.6 kB a ball (docs/performance.md, memory): 1.6 GB at 10⁶ balls,
+# which 1 GB does not hold, and 16 GB at 10⁷. A fraction scales with the device where a
+# fixed size cannot: 0.8 of an 80 GB device (64 GB) holds 10⁷ balls four times over and
+# 0.8 of a 4 GB one still holds 10⁶ balls, while the fifth left over keeps room for
+# the CUDA context, the copies of the frames and events a drain reads back, and a
+# display. A sweep's or a study's worker processes share one device: each takes its
+# share of the fraction (init_taichi's `share`).
+DEVICE_MEMORY_FRACTION = 0.8
+
+
+def init_taichi(threads: int | None = None, share: int = 1):
+    """ti.init once per process (a second call invalidates fields), on the backend the
+    process was asked for (physics.backend: TAIMILL_BACKEND, the command line's
+    --backend). Serial loops and f64 make results bit-identical run to run
+    (tests/test_runs.py); without fast-math the compiler may not contract or
+    reassociate, so both launch modes agree to the bit. `share`: processes that run on
+    one CUDA device at once (a sweep's workers), each reserving DEVICE_MEMORY_FRACTION
+    / share of its memory. Asked for cuda where Taichi finds no device, a ConfigError
+    (Taichi itself would only warn and run on the CPU)."""
     global _initialised
     if _initialised:
         return
+    from taimill.physics import backend
+
+    arch = backend.arch()  # a ConfigError for cuda without a device, before Taichi starts
     if threads:  # through Taichi's own variable: a kwarg beside it would print a warning
         os.environ["TI_CPU_MAX_NUM_THREADS"] = str(int(threads))
     clear_stale_cache_lock()
@@ -219,7 +241,26 @@ def init_taichi(threads: int | None = None):
     # ti.init prints "[Taichi] Starting on arch=…" whatever the log level: kept off stdout
     # (JSON) and off a progress bar's line, shown on stderr only when asked for (info, debug)
     quiet = level.lower() in ("warn", "warning", "error", "critical")
-    with contextlib.redirect_stdout(io.StringIO() if quiet else sys.stderr):
-        ti.init(arch=ti.cpu, default_fp=ti.f64, default_ip=ti.i32, offline_cache=True, fast_math=False,
-                log_level=level, **kw)
+    if arch == "cuda":
+        kw["device_memory_fraction"] = DEVICE_MEMORY_FRACTION / max(1, int(share))
+    os.environ.pop("TI_ARCH", None)  # Taichi's own choice of arch would override the backend's
+    asked, source, key = backend.requested()
+
+    def start(arch):
+        with contextlib.redirect_stdout(io.StringIO() if quiet else sys.stderr):
+            ti.init(arch=getattr(ti, arch), default_fp=ti.f64, default_ip=ti.i32, offline_cache=True,
+                    fast_math=False, log_level=level, **kw)
+
+    try:
+        start(arch)
+    except Exception as err:  # the device's memory taken by other processes, a driver too old (not seen yet)
+        if arch != "cuda":
+            raise
+        if asked != "auto":
+            raise ConfigError(source, key, asked, f"Taichi could not start on {backend.cuda_devices()[0]} ({err}); "
+                              "use --backend cpu") from None
+        start("cpu")  # auto: the CPU, without a word
+    if asked == "cuda" and internal("lang.impl").current_cfg().arch != ti.cuda:  # a Taichi built without CUDA
+        raise ConfigError(source, key, asked, f"{describe()} did not start on the CUDA device "
+                          f"{backend.cuda_devices()[0]} (built without CUDA?); use --backend cpu")
     _initialised = True

@@ -4,7 +4,8 @@ that writes the sweep store (so workers need no shared file system).
 
 Backends:
 - local: `ProcessPoolExecutor` with the **spawn** start method (fork after `ti.init`
-  hangs); every worker calls `init_taichi(threads=1)` once and keeps its
+  hangs); every worker calls `init_taichi(threads=1)` once (on the parent's
+  backend: the workers inherit TAIMILL_BACKEND) and keeps its
   engine between chunks (simulation._engines); progress comes back over a queue after
   every kernel launch, with the worker's pid (so the parent knows which chunk runs
   where). Workers die with the parent, even a parent killed with SIGKILL
@@ -78,7 +79,7 @@ def chunk_seconds(jobs: list[Job]) -> float:
 _progress = None  # the local backend's queue, set in each worker process
 
 
-def _init_local_worker(progress_queue, parent: int):
+def _init_local_worker(progress_queue, parent: int, workers: int = 1):
     from taimill.physics.ti import init_taichi
     from taimill.runs.signals import die_with_parent
 
@@ -86,7 +87,9 @@ def _init_local_worker(progress_queue, parent: int):
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent is interrupted and stops the workers
     global _progress
     _progress = progress_queue
-    init_taichi(threads=1)  # in the worker's main thread, where its kernels run
+    # in the worker's main thread, where its kernels run; on the backend the parent was
+    # told (TAIMILL_BACKEND, which the command line sets), a CUDA device shared by all
+    init_taichi(threads=1, share=workers)
 
 
 def _check_dask_worker():
@@ -157,7 +160,7 @@ def run_local(chunks: list[list[Job]], workers: int, keep_streams: bool, on_prog
     ctx = multiprocessing.get_context("spawn")
     progress_queue = ctx.Queue()
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_local_worker,
-                               initargs=(progress_queue, os.getpid()))
+                               initargs=(progress_queue, os.getpid(), workers))
     running: dict[int, int | None] = {}  # chunk id -> pid of the worker running it (None: finished)
     try:
         futures = {pool.submit(run_chunk, cid, chunk, keep_streams): cid for cid, chunk in enumerate(chunks)}

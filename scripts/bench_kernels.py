@@ -105,7 +105,7 @@ def _noop_step(engine, samples: int = 20) -> float | None:
     if step is None:
         return None
     F, times = engine.F, []
-    k = engine.STEPS_PER_LAUNCH
+    k = engine.steps_per_kernel
     for _ in range(samples):
         step(F, engine.launch_margin, int(F.state.step[0]) + k, k)
         t0 = time.perf_counter()

@@ -57,7 +57,6 @@ QUICK_DIFF_SECONDS = 3.0
 # and an Amdahl serial share of 0.16 (4 threads 34, 16 threads 20); CUDA 9, budgeted as 6
 # so that a faster CUDA still runs long enough to measure. Only the step counts use them.
 CPU_NS, SERIAL_SHARE, CUDA_NS = 94.0, 0.16, 6.0
-FUSED_UP_TO = 50_000  # physics.runner.PARALLEL_ABOVE: up to this a mill runs as one task, one thread
 FUSED_CUDA_NS = 500.0  # a guess: a fused mill on a GPU is one GPU thread
 BEADS = "p4-zr80-beads-1mm"
 BEAD_STEPS = 1000
@@ -139,9 +138,12 @@ def taimill_run(args: list[str], backend: str, threads: int | None, log: Path, t
 
 
 def expected_ns(backend: str, threads: int, n: int) -> float:
+    from taimill.physics.runner import parallel_above  # which mode a mill of n balls runs in there
+
+    fused = n <= parallel_above(backend, threads)
     if backend == "cuda":
-        return FUSED_CUDA_NS if n <= FUSED_UP_TO else CUDA_NS
-    t = 1 if n <= FUSED_UP_TO else threads
+        return FUSED_CUDA_NS if fused else CUDA_NS
+    t = 1 if fused else threads
     return CPU_NS * (SERIAL_SHARE + (1 - SERIAL_SHARE) / t)
 
 

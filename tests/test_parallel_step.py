@@ -67,7 +67,7 @@ def test_the_blocked_prefix_sum_gives_every_cell_its_start():
 def test_advance_takes_exactly_the_steps_asked_for():
     spec = _thrown(200, 0.01)
     runner = Runner([spec], mode="parallel")
-    assert runner.engine.STEPS_PER_LAUNCH > 1  # else this says nothing
+    assert runner.engine.steps_per_kernel > 1  # else this says nothing
     for n in (1, 3, 2, 5):
         before = int(runner.engine.F.state.step[0])
         runner.engine.advance(n)
@@ -97,3 +97,16 @@ def test_a_mill_of_a_million_balls_fits_in_two_gigabytes_of_device_memory():
     r = json.loads(out.stdout.strip().splitlines()[-1])
     assert r["mode"] == "parallel"
     assert 1.0e9 < r["bytes"] <= 2.0e9  # 1.37 GB when written; 1 GB would mean a field was missed
+
+
+def test_the_launch_mode_follows_where_the_kernels_run(monkeypatch):
+    from taimill.physics import runner as R
+
+    assert R.parallel_above("cpu", 1) == R.parallel_above("cpu", 2) == R.PARALLEL_ABOVE
+    assert R.parallel_above("cpu", 16) == R.PARALLEL_ABOVE_MANY_THREADS < R.PARALLEL_ABOVE
+    assert R.parallel_above("cuda", 1) == R.PARALLEL_ABOVE_ON_GPU < R.PARALLEL_ABOVE_MANY_THREADS
+    spec = _thrown(200, 0.001)
+    monkeypatch.setattr(R, "PARALLEL_ABOVE_ON_GPU", 100)  # a mill of 200 balls is then "large" on a GPU
+    for where, mode in ((("cpu", 2), "fused"), (("cuda", 1), "parallel")):
+        monkeypatch.setattr(R, "where", lambda w=where: w)
+        assert R._runner_shape([spec])[2] == mode, where

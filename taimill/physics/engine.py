@@ -21,7 +21,7 @@ from taimill.physics.contacts import ball_forces
 from taimill.physics.pool import pool_settle, release_rows
 from taimill.physics.frame import drive_turning, psi_at, steady, ramp_at, ramp_turn, wall_velocity_ground
 from taimill.physics.integrator import frame_acceleration, integrate
-from taimill.physics.ti import ti
+from taimill.physics.ti import internal, ti
 
 PAD = 512
 PSI_RESYNC = 4096  # steps between exact evaluations of cos ψ, sin ψ (psi_trig)
@@ -330,7 +330,10 @@ class Engine:
     # step of 10⁵ balls (Taichi's and Python's own data are out of the caches by then):
     # 3 % of a step on one thread (4.4 ms). Each step more is one more copy of the force
     # pass to compile: 3.7 s CPU for one step, 18.2 for four (2-core AMD EPYC machine)
-    STEPS_PER_LAUNCH = 2
+    STEPS_PER_KERNEL = 2
+    # on a GPU the launch returns its flags, a wait for the device: four steps between
+    # waits (a guess until a lent machine measures it: scripts/device_check.sh)
+    STEPS_PER_KERNEL_ON_GPU = 4
 
     def __init__(self, batch, balls, *, mode="fused", use_grid=True, grid_cells=1, frame_capacity=256, pool=None,
                  reorder=None, models=None):
@@ -356,6 +359,8 @@ class Engine:
         self.F = S.Fields(batch, n, events, frames, grid_cells, pool, share_pairs=mode == "fused", reorder=reorder,
                           models=models)
         self._spare: dict[int, list[np.ndarray]] = {}  # drain's frame arrays per mill (_frame_arrays)
+        on_gpu = internal("lang.impl").current_cfg().arch == ti.cuda
+        self.steps_per_kernel = self.STEPS_PER_KERNEL_ON_GPU if on_gpu else self.STEPS_PER_KERNEL
 
     @property
     def B(self):
@@ -373,7 +378,7 @@ class Engine:
         while go:
             if go & STALE:
                 rebuild_parallel(F)
-            go = step_parallel(F, self.launch_margin, last, self.STEPS_PER_LAUNCH)
+            go = step_parallel(F, self.launch_margin, last, self.steps_per_kernel)
 
     def build_lists(self):
         """Rebuild every neighbour list now (the step does it when they go stale)."""

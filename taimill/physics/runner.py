@@ -17,6 +17,7 @@ import functools
 import hashlib
 import json
 import math
+import os
 import time
 from pathlib import Path
 
@@ -32,10 +33,21 @@ from taimill.model.spec import MillSpec, grid_cells_for
 from taimill.model.spectra import Spectra
 from taimill.schema import DERIVED_EVENT_COLUMNS, EVENT_COLUMNS
 
-# balls: beyond this one mill runs in parallel mode. Measured crossover on the 2-core
-# machine (scripts/bench.py): fused 366 vs parallel 673 µs/step at 10 000 balls,
-# 5263 vs 4311 at 100 000.
+# balls: beyond this one mill runs in parallel mode (parallel_above). Measured crossover on
+# the 2-core machine (scripts/bench.py): fused 366 vs parallel 673 µs/step at 10 000
+# balls, 5263 vs 4311 at 100 000.
 PARALLEL_ABOVE = 50_000
+# ... on 4 threads or more: parallel mode costs ≈ 1.45× the fused mode per ball on one
+# thread (it computes each contact from both balls; at 10⁵ balls 52.6 ns a ball-step
+# fused, ≈ 76 parallel: 4311 µs a step on 2 threads at an efficiency of 0.88) and
+# ≈ 50 µs a step of launch; measured on a 16-core machine (H100 host, before launches of
+# two steps) 4 threads ran 2.7× one, so parallel mode is ahead from ≈ 50 µs / (52.6 −
+# 76 / 2.7) ns ≈ 2000 balls. 10 000 leaves room for a slower machine's launches.
+PARALLEL_ABOVE_MANY_THREADS = 10_000
+# ... on a GPU, where the fused mode runs a mill on one GPU thread: a mill of more than a
+# few hundred balls is better spread over the device whatever its launches cost. Not
+# yet measured (scripts/device_check.sh shows both modes' figures on a lent machine).
+PARALLEL_ABOVE_ON_GPU = 1000
 # balls: up to this many a mill's neighbour lists are built from all pairs, not the
 # spatial hash (identical lists, so identical results). Measured per step, one thread,
 # 4 s runs, Xeon machine: CY steel 12 balls 0.239 vs 0.222 µs (-7 %), CY fluorite 1.14
@@ -164,13 +176,31 @@ def _source_digest() -> str:
     return h.hexdigest()[:16]
 
 
+def where() -> tuple[str, int]:
+    """("cpu" or "cuda", CPU threads) this process's kernels run on, or will once Taichi
+    starts (the backend asked for; TI_CPU_MAX_NUM_THREADS, else every core)."""
+    from taimill.physics import backend, ti as T
+
+    if T._initialised:
+        c = backend.current()
+        return c["backend"], c["threads"]
+    return backend.arch(), int(os.environ.get("TI_CPU_MAX_NUM_THREADS") or 0) or os.cpu_count() or 1
+
+
+def parallel_above(arch: str, threads: int) -> int:
+    """Balls beyond which one mill runs in parallel mode on `arch` with `threads` CPU threads."""
+    if arch == "cuda":
+        return PARALLEL_ABOVE_ON_GPU
+    return PARALLEL_ABOVE if threads < 4 else PARALLEL_ABOVE_MANY_THREADS
+
+
 def _runner_shape(specs, mode=None, use_grid=None, pool=None, reorder=None) -> tuple:
     """The engine key (_engine_key) a Runner of `specs` uses."""
     n = max(s.n for s in specs)
     use_grid = n > ALL_PAIRS_UP_TO if use_grid is None else use_grid
     # a history model's contact is computed once, by its owner: the fused mode's order
     history = any(m.tangential.history or m.rolling.history for s in specs for m in s.contact_models)
-    mode = mode or ("parallel" if len(specs) == 1 and n > PARALLEL_ABOVE and not history else "fused")
+    mode = mode or ("parallel" if len(specs) == 1 and n > parallel_above(*where()) and not history else "fused")
     cells = 1 << max(grid_cells_for(s) for s in specs).bit_length()
     return _engine_key(len(specs), n, mode, use_grid, cells, frame_capacity(specs), pool, reorder, models_of(specs))
 
@@ -302,7 +332,7 @@ class Runner:
             advance_fused(F, 0, e.margin, e.use_grid)
         else:
             step_flags(F, e.margin, 0)
-            step_parallel(F, e.margin, 0, e.STEPS_PER_LAUNCH)
+            step_parallel(F, e.margin, 0, e.steps_per_kernel)
         nb = int(F.model.n_balls[0])
         export_events(F, 0, 0, np.zeros((1, S.NCOL)))
         export_frames(F, 0, 0, nb, *e._frame_arrays(0, 1, nb))

@@ -107,9 +107,9 @@ def _noop_step(engine, samples: int = 20) -> float | None:
     F, times = engine.F, []
     k = engine.steps_per_kernel
     for _ in range(samples):
-        step(F, engine.launch_margin, int(F.state.step[0]) + k, k)
+        step(F, engine.launch_margin, int(F.state.step[0]) + k, k, False)
         t0 = time.perf_counter()
-        step(F, engine.launch_margin, 0, k)
+        step(F, engine.launch_margin, 0, k, False)
         times.append(time.perf_counter() - t0)
     return statistics.median(times)
 

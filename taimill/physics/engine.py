@@ -203,16 +203,18 @@ def rebuild_fused(F: ti.template(), use_grid: ti.template()):
 
 
 # ---- parallel mode (b = 0): a step is one launch, its phases the kernel's loops
-GO, STALE = 1, 2
+GO, STALE, FRAME = 1, 2, 4
 
 
 @ti.func
 def flags(F: ti.template(), margin, last):
     """0 (stop: at step `last`, done, a fault, or a buffer full) or GO, plus STALE if
-    the lists need a rebuild before the next step."""
+    the lists need a rebuild before the next step, FRAME if it takes a frame."""
     go = 0
     if can_step(F, 0, margin) and F.state.step[0] < last:
         go = GO + STALE * F.spatial.rebuild[0]
+        if F.state.step[0] % F.model.frame_every[0] == 0:
+            go += FRAME
     return go
 
 
@@ -225,43 +227,47 @@ step_flags.serial_kernel = True  # one thread, whatever the thread count (script
 
 
 @ti.kernel
-def step_parallel(F: ti.template(), margin: ti.i32, last: ti.i64, steps: ti.template()) -> ti.i32:
+def step_parallel(F: ti.template(), margin: ti.i32, last: ti.i64, steps: ti.template(),
+                  with_frame: ti.template()) -> ti.i32:
     """Up to `steps` steps of the large mill in one launch (unrolled: each step's phases
     are loops over the balls on every thread), then the flags of the next (flags). A
-    step that may not run (stop, or stale lists) does nothing, and neither do the
-    launch's later ones: the launcher rebuilds the lists or stops."""
+    step that may not run does nothing, and neither do the launch's later ones: at a
+    stop, stale lists (the launcher rebuilds them) or, unless `with_frame`, a frame
+    (the launcher takes that step alone with_frame). Every loop of a kernel costs a
+    dispatch to the threads even when it has nothing to do (≈ 47 µs on the 2-core
+    machine): the frame's loops are in the frame steps' kernel only."""
     for _ in ti.static(range(steps)):
-        one_step(F, margin, last)
+        one_step(F, margin, last, with_frame)
     return flags(F, margin, last)
 
 
 @ti.func
-def one_step(F: ti.template(), margin, last):
-    """One step of the large mill: forces, the frame if one is due, integration. The
+def one_step(F: ti.template(), margin, last, with_frame: ti.template()):
+    """One step of the large mill: forces, the frame (with_frame), integration. The
     scalars between the loops run on one thread: a few dozen operations a step."""
     dt = F.model.dt[0]
     st = F.state.step[0]
     t = st * dt
+    due = st % F.model.frame_every[0] == 0
     go = 0
-    if can_step(F, 0, margin) and st < last:
+    if can_step(F, 0, margin) and st < last and (ti.static(with_frame) or not due):
         go = 1 - F.spatial.rebuild[0]
-    frame = 0
-    if st % F.model.frame_every[0] == 0:
-        frame = go
-    k = F.out.n_frames[0]
     n = F.model.n_balls[0]
     dr = drive(F, 0, t)
     for i in range(n * go):
         ball_forces(F, 0, i, t, dr, dt)
-    for u in range(n * frame):
-        frame_ball(F, 0, k, u)
-    for blk in range(sum_blocks(F, 0) * frame):
-        F.out.ledger_part[blk] = ledger_block(F, 0, blk, dr)
-    if frame:
-        sums = F.out.ledger_part[0]
-        for blk in range(1, sum_blocks(F, 0)):
-            sums += F.out.ledger_part[blk]
-        frame_record(F, 0, k, t, sums)
+    if ti.static(with_frame):
+        frame = go * due
+        k = F.out.n_frames[0]
+        for u in range(n * frame):
+            frame_ball(F, 0, k, u)
+        for blk in range(sum_blocks(F, 0) * frame):
+            F.out.ledger_part[blk] = ledger_block(F, 0, blk, dr)
+        if frame:
+            sums = F.out.ledger_part[0]
+            for blk in range(1, sum_blocks(F, 0)):
+                sums += F.out.ledger_part[blk]
+            frame_record(F, 0, k, t, sums)
     pool_settle(F, 0)
     a_frame = frame_acceleration(F, 0, dr)
     for i in range(n * go):
@@ -378,7 +384,10 @@ class Engine:
         while go:
             if go & STALE:
                 rebuild_parallel(F)
-            go = step_parallel(F, self.launch_margin, last, self.steps_per_kernel)
+            if go & FRAME:
+                go = step_parallel(F, self.launch_margin, last, 1, True)
+            else:
+                go = step_parallel(F, self.launch_margin, last, self.steps_per_kernel, False)
 
     def build_lists(self):
         """Rebuild every neighbour list now (the step does it when they go stale)."""

@@ -332,7 +332,8 @@ class Runner:
             advance_fused(F, 0, e.margin, e.use_grid)
         else:
             step_flags(F, e.margin, 0)
-            step_parallel(F, e.margin, 0, e.steps_per_kernel)
+            step_parallel(F, e.margin, 0, e.steps_per_kernel, False)
+            step_parallel(F, e.margin, 0, 1, True)
         nb = int(F.model.n_balls[0])
         export_events(F, 0, 0, np.zeros((1, S.NCOL)))
         export_frames(F, 0, 0, nb, *e._frame_arrays(0, 1, nb))

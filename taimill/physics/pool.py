@@ -124,25 +124,67 @@ def claim_row(F: ti.template(), b, i, j, taken, was_open):
 
 
 @ti.func
-def read_history(F: ti.template(), b, row, is_new):
-    """(tangential history ξ, its stored energy, rolling history M_r, its stored energy)
-    of the contact in pool row `row`: zero for a new contact or without a row."""
-    xi = ti.Vector([0.0, 0.0, 0.0])
-    m_r = ti.Vector([0.0, 0.0, 0.0])
-    e_xi, e_mr = 0.0, 0.0
-    if row >= 0 and not is_new:
-        q = F.contacts.pool[b, row]
-        xi = ti.Vector([q[S.SLOT_XI], q[S.SLOT_XI + 1], q[S.SLOT_XI + 2]])
-        m_r = ti.Vector([q[S.SLOT_MR], q[S.SLOT_MR + 1], q[S.SLOT_MR + 2]])
-        e_xi, e_mr = q[S.SLOT_EXI], q[S.SLOT_EMR]
-    return xi, e_xi, m_r, e_mr
+def history_block(F: ti.template(), b):
+    """The history block (0 or 1) of a pool row that mill b's contacts read in this step;
+    they write the other, which the next step reads. In parallel mode both balls of a
+    contact compute it, each on its own thread: the partner reads the block the owner
+    reads, which no thread writes in this step. The step's parity picks it;
+    contacts.history_shift keeps that parity when mill.set_clock sets the step."""
+    return ti.cast((F.state.step[b] + F.contacts.history_shift[b]) & 1, ti.i32)
 
 
 @ti.func
-def write_history(F: ti.template(), b, row, xi, e_xi, m_r, e_mr):
-    """Keep a contact's history in its pool row for the next step."""
-    for c in ti.static(range(3)):
-        F.contacts.pool[b, row][S.SLOT_XI + c] = xi[c]
-        F.contacts.pool[b, row][S.SLOT_MR + c] = m_r[c]
-    F.contacts.pool[b, row][S.SLOT_EXI] = e_xi
-    F.contacts.pool[b, row][S.SLOT_EMR] = e_mr
+def read_history(F: ti.template(), b, row, is_new, block):
+    """(tangential history ξ, its stored energy, rolling history M_r, its stored energy)
+    of the contact in pool row `row`, from history block `block`: zero for a new
+    contact or without a row. Kept from the owner's side (the ball of lower own index)."""
+    h = ti.Vector.zero(ti.f64, S.HISTORY)
+    if row >= 0 and not is_new:
+        if block == 0:
+            for c in ti.static(range(S.HISTORY)):
+                h[c] = F.contacts.pool[b, row][S.SLOT_DATA + c]
+        else:
+            for c in ti.static(range(S.HISTORY)):
+                h[c] = F.contacts.pool[b, row][S.SLOT_DATA + S.HISTORY + c]
+    xi = ti.Vector([h[S.HIST_XI + c] for c in ti.static(range(3))])
+    m_r = ti.Vector([h[S.HIST_MR + c] for c in ti.static(range(3))])
+    return xi, h[S.HIST_EXI], m_r, h[S.HIST_EMR]
+
+
+@ti.func
+def write_history(F: ti.template(), b, row, block, xi, e_xi, m_r, e_mr):
+    """Keep a contact's history in its pool row for the next step: in the block that
+    this step does not read."""
+    h = ti.Vector([xi[0], xi[1], xi[2], e_xi, m_r[0], m_r[1], m_r[2], e_mr])
+    if block == 0:
+        for c in ti.static(range(S.HISTORY)):
+            F.contacts.pool[b, row][S.SLOT_DATA + S.HISTORY + c] = h[c]
+    else:
+        for c in ti.static(range(S.HISTORY)):
+            F.contacts.pool[b, row][S.SLOT_DATA + c] = h[c]
+
+
+@ti.func
+def owner_row(F: ti.template(), b, i, j):
+    """Pool row of the contact of ball i with its owner j if it was open when this step
+    began, else -1: a walk of j's slots as they were then (contacts.slot_prev), whose
+    partners and rows no thread changes in this step (j's thread claims only slots free
+    then, partner_slot, and rewrites slot_mask, not slot_prev). Ball i's visit reads
+    the owner's history from that row (parallel mode)."""
+    row = -1
+    mask = F.contacts.slot_prev[b, j] >> S.WALLS
+    k = S.WALLS
+    while mask:
+        if mask & 1 and F.contacts.slot_partner[b, j, k] == i:
+            row = F.contacts.slot_row[b, j, k]
+        mask >>= 1
+        k += 1
+    return row
+
+
+@ti.func
+def keep_open_mask(F: ti.template(), b, i):
+    """Ball i's open slots as the next step begins, for its partners' owner_row (after
+    release_rows; reorder.py and mill.py keep it too)."""
+    if ti.static(F.prev_mask):
+        F.contacts.slot_prev[b, i] = F.contacts.slot_mask[b, i]

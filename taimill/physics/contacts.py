@@ -26,7 +26,7 @@ The contact response (response.py), the open-contact pool (pool.py) and the even
 from taimill.physics import state as S
 from taimill.physics.events import book_contact, book_mechanism, close_events
 from taimill.physics.frame import wall_velocity_ground
-from taimill.physics.pool import claim_row, history_block, owner_row, read_history, slot_row, write_history
+from taimill.physics.pool import claim_row, history_block, owner_row, read_history, read_springs, slot_row, write_history
 from taimill.physics.response import contact_energy, contact_response, rolling_response
 from taimill.physics.ti import ti
 from taimill.physics.walls import wall_near
@@ -107,7 +107,7 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt, block):
                 # ball i iff owner_row finds it, and the slots it opens in this step
                 # before reaching i are for other balls (a list names a ball once).
                 prev = owner_row(F, b, i, j)
-                hist_t, e_t, hist_r, e_r = read_history(F, b, prev, prev < 0, block)
+                hist_t, hist_r = read_springs(F, b, prev, prev < 0, block)
                 hist_t, hist_r = -hist_t, -hist_r
         fc, udot, slip, fn, fel, ft, new_t, new_e_t = contact_response(F, b, 0, u, nrm, vrel, m_eff, inv_mass_t, dt,
                                                                        hist_t)

@@ -134,34 +134,48 @@ def history_block(F: ti.template(), b):
 
 
 @ti.func
-def read_history(F: ti.template(), b, row, is_new, block):
-    """(tangential history ξ, its stored energy, rolling history M_r, its stored energy)
-    of the contact in pool row `row`, from history block `block`: zero for a new
-    contact or without a row. Kept from the owner's side (the ball of lower own index)."""
+def read_springs(F: ti.template(), b, row, is_new, block):
+    """(tangential spring ξ, rolling spring M_r) of the contact in pool row `row`, from
+    history block `block`: zero for a new contact or without a row. Kept from the
+    owner's side (the ball of lower own index)."""
     h = ti.Vector.zero(ti.f64, S.HISTORY)
     if row >= 0 and not is_new:
         if block == 0:
             for c in ti.static(range(S.HISTORY)):
-                h[c] = F.contacts.pool[b, row][S.SLOT_DATA + c]
+                h[c] = F.contacts.pool[b, row][S.SLOT_SPRINGS + c]
         else:
             for c in ti.static(range(S.HISTORY)):
-                h[c] = F.contacts.pool[b, row][S.SLOT_DATA + S.HISTORY + c]
+                h[c] = F.contacts.pool[b, row][S.SLOT_SPRINGS + S.HISTORY + c]
     xi = ti.Vector([h[S.HIST_XI + c] for c in ti.static(range(3))])
     m_r = ti.Vector([h[S.HIST_MR + c] for c in ti.static(range(3))])
-    return xi, h[S.HIST_EXI], m_r, h[S.HIST_EMR]
+    return xi, m_r
+
+
+@ti.func
+def read_history(F: ti.template(), b, row, is_new, block):
+    """(tangential history ξ, its stored energy, rolling history M_r, its stored energy)
+    of the contact in pool row `row` as its owner reads it: the springs (read_springs)
+    and the energies they stored at the last step."""
+    xi, m_r = read_springs(F, b, row, is_new, block)
+    e_xi, e_mr = 0.0, 0.0
+    if row >= 0 and not is_new:
+        e_xi, e_mr = F.contacts.pool[b, row][S.SLOT_EXI], F.contacts.pool[b, row][S.SLOT_EMR]
+    return xi, e_xi, m_r, e_mr
 
 
 @ti.func
 def write_history(F: ti.template(), b, row, block, xi, e_xi, m_r, e_mr):
-    """Keep a contact's history in its pool row for the next step: in the block that
-    this step does not read."""
-    h = ti.Vector([xi[0], xi[1], xi[2], e_xi, m_r[0], m_r[1], m_r[2], e_mr])
+    """Keep a contact's history in its pool row for the next step: the springs in the
+    block that this step does not read."""
+    h = ti.Vector([xi[0], xi[1], xi[2], m_r[0], m_r[1], m_r[2]])
     if block == 0:
         for c in ti.static(range(S.HISTORY)):
-            F.contacts.pool[b, row][S.SLOT_DATA + S.HISTORY + c] = h[c]
+            F.contacts.pool[b, row][S.SLOT_SPRINGS + S.HISTORY + c] = h[c]
     else:
         for c in ti.static(range(S.HISTORY)):
-            F.contacts.pool[b, row][S.SLOT_DATA + c] = h[c]
+            F.contacts.pool[b, row][S.SLOT_SPRINGS + c] = h[c]
+    F.contacts.pool[b, row][S.SLOT_EXI] = e_xi
+    F.contacts.pool[b, row][S.SLOT_EMR] = e_mr
 
 
 @ti.func

@@ -23,13 +23,20 @@ SLOTS = WALLS + PARTNER_SLOTS
 SLOT_T0, SLOT_UN, SLOT_UT, SLOT_PX, SLOT_PY, SLOT_PZ, SLOT_FPEAK, SLOT_UPEAK, SLOT_DN, SLOT_DT = range(10)
 SLOT_DATA = 10
 # History of a contact whose tangential or rolling model keeps one, after the
-# accumulators in its pool row (present only in engines compiled for such a model), in
-# two blocks of HISTORY columns: a step reads one and writes the other (pool.history_block),
-# so a partner's thread reads what the owner read while the owner writes. Columns of a
-# block: tangential spring ξ (m, 3), the energy it stored at the last step (J), rolling
-# spring torque (N m, 3), its stored energy (J).
-HIST_XI, HIST_EXI, HIST_MR, HIST_EMR = 0, 3, 4, 7
-HISTORY = 8
+# accumulators in its pool row (present only in engines compiled for such a model): the
+# energy its tangential and its rolling spring stored at the last step (J; only the
+# owner's thread reads and writes them), then the springs, tangential ξ (m, 3) and
+# rolling torque M_r (N m, 3), twice, in two blocks of HISTORY columns: a step reads one
+# and writes the other (pool.history_block), so a partner's thread reads what the owner
+# read while the owner writes. 24 columns, 192 bytes: three cache lines, as many as a row
+# with one copy of the history spans (18 columns at 16-byte offsets). With the energies
+# in the blocks too (26 columns, four lines) the fused mode's simple cubic bed of 2·10⁴
+# balls (scripts/bench.py, LIGGGHTS-like set, one thread) took 94-95 ns of CPU per
+# ball-step against 73-82 with one copy; so, 67-71 against 68-75 (interleaved runs).
+SLOT_EXI, SLOT_EMR = SLOT_DATA, SLOT_DATA + 1
+SLOT_SPRINGS = SLOT_DATA + 2  #: the first history block's first column
+HIST_XI, HIST_MR = 0, 3
+HISTORY = 6
 
 # Event record columns as the kernel writes them: the schema's event columns without
 # those the launcher derives after each launch (the stress energies).
@@ -143,7 +150,7 @@ class Fields:
         self.models = tuple(tuple(m) for m in (models or default_models()))
         # per contact type: a model keeps a per-contact history (in its pool row)
         self.history = tuple(any(m.tangential.history or m.rolling.history for m in ms) for ms in self.models)
-        self.pool_width = SLOT_DATA + (2 * HISTORY if any(self.history) else 0)
+        self.pool_width = SLOT_SPRINGS + 2 * HISTORY if any(self.history) else SLOT_DATA
         if reorder and (B != 1 or share_pairs):
             raise ValueError("balls are stored in grid order only in parallel mode (one mill)")
         # the balls' forces are computed one after another in index order (fused mode):

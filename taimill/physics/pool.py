@@ -129,8 +129,23 @@ def history_block(F: ti.template(), b):
     they write the other, which the next step reads. In parallel mode both balls of a
     contact compute it, each on its own thread: the partner reads the block the owner
     reads, which no thread writes in this step. The step's parity picks it;
-    contacts.history_shift keeps that parity when mill.set_clock sets the step."""
-    return ti.cast((F.state.step[b] + F.contacts.history_shift[b]) & 1, ti.i32)
+    contacts.history_shift keeps that parity when mill.set_clock sets the step. With
+    one block (state.Fields.history_copies: no partner reads it) always 0."""
+    block = 0
+    if ti.static(F.history_copies == 2):
+        block = ti.cast((F.state.step[b] + F.contacts.history_shift[b]) & 1, ti.i32)
+    return block
+
+
+@ti.func
+def _springs_at(F: ti.template(), b, row, col: ti.template()):
+    return ti.Vector([F.contacts.pool[b, row][col + c] for c in ti.static(range(S.HISTORY))])
+
+
+@ti.func
+def _keep_springs_at(F: ti.template(), b, row, col: ti.template(), h):
+    for c in ti.static(range(S.HISTORY)):
+        F.contacts.pool[b, row][col + c] = h[c]
 
 
 @ti.func
@@ -140,12 +155,12 @@ def read_springs(F: ti.template(), b, row, is_new, block):
     owner's side (the ball of lower own index)."""
     h = ti.Vector.zero(ti.f64, S.HISTORY)
     if row >= 0 and not is_new:
-        if block == 0:
-            for c in ti.static(range(S.HISTORY)):
-                h[c] = F.contacts.pool[b, row][S.SLOT_SPRINGS + c]
+        if ti.static(F.history_copies == 1):
+            h = _springs_at(F, b, row, S.SLOT_SPRINGS)
+        elif block == 0:
+            h = _springs_at(F, b, row, S.SLOT_SPRINGS)
         else:
-            for c in ti.static(range(S.HISTORY)):
-                h[c] = F.contacts.pool[b, row][S.SLOT_SPRINGS + S.HISTORY + c]
+            h = _springs_at(F, b, row, S.SLOT_SPRINGS + S.HISTORY)
     xi = ti.Vector([h[S.HIST_XI + c] for c in ti.static(range(3))])
     m_r = ti.Vector([h[S.HIST_MR + c] for c in ti.static(range(3))])
     return xi, m_r
@@ -166,14 +181,14 @@ def read_history(F: ti.template(), b, row, is_new, block):
 @ti.func
 def write_history(F: ti.template(), b, row, block, xi, e_xi, m_r, e_mr):
     """Keep a contact's history in its pool row for the next step: the springs in the
-    block that this step does not read."""
+    block that this step does not read (with two)."""
     h = ti.Vector([xi[0], xi[1], xi[2], m_r[0], m_r[1], m_r[2]])
-    if block == 0:
-        for c in ti.static(range(S.HISTORY)):
-            F.contacts.pool[b, row][S.SLOT_SPRINGS + S.HISTORY + c] = h[c]
+    if ti.static(F.history_copies == 1):
+        _keep_springs_at(F, b, row, S.SLOT_SPRINGS, h)
+    elif block == 0:
+        _keep_springs_at(F, b, row, S.SLOT_SPRINGS + S.HISTORY, h)
     else:
-        for c in ti.static(range(S.HISTORY)):
-            F.contacts.pool[b, row][S.SLOT_SPRINGS + c] = h[c]
+        _keep_springs_at(F, b, row, S.SLOT_SPRINGS, h)
     F.contacts.pool[b, row][S.SLOT_EXI] = e_xi
     F.contacts.pool[b, row][S.SLOT_EMR] = e_mr
 

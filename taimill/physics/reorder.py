@@ -110,12 +110,10 @@ def _gather_home(F: ti.template(), h: ti.i32, c0: ti.i32):
 def _put_home(F: ti.template(), h: ti.i32, c0: ti.i32):
     for q in range(F.model.n_balls[0]):
         row = F.spatial.x_ref[0, q]
-        data = F.contacts.pool[0, q * F.home + h]
-        for c in ti.static(range(F.pool_width)):
+        for c in ti.static(range(F.pool_width)):  # only these columns: a row of history is 24
             for k in ti.static(range(3)):
                 if c == c0 + k:
-                    data[c] = row[k]
-        F.contacts.pool[0, q * F.home + h] = data
+                    F.contacts.pool[0, q * F.home + h][c] = row[k]
 
 
 @ti.kernel

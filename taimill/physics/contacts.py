@@ -6,7 +6,11 @@ to the bit, so both visits of a pair give exactly opposite forces and momentum i
 exact. (A half loop scattering to j was measured 40 % slower.)
 In fused mode (one thread per mill, balls in index order) the owner leaves the
 partner's force and torque in its slot and the partner's visit reads them
-(partner_share): the same numbers without computing the contact twice.
+(partner_share): the same numbers without computing the contact twice. In parallel
+mode both balls compute it; a contact model with history keeps its history in the
+owner's pool row, in two blocks by step parity (pool.history_block), and the partner
+reads the block the owner reads, through the owner's slots as they were at the step's
+start (pool.owner_row), so it computes what the owner computes, on any thread.
 
 The lower own index owns a pair (state.owns; in parallel mode the rows are in grid
 order, reorder.py, and a ball's own index is F.state.user_of of its row): only it books the
@@ -22,7 +26,7 @@ The contact response (response.py), the open-contact pool (pool.py) and the even
 from taimill.physics import state as S
 from taimill.physics.events import book_contact, book_mechanism, close_events
 from taimill.physics.frame import wall_velocity_ground
-from taimill.physics.pool import claim_row, read_history, slot_row, write_history
+from taimill.physics.pool import claim_row, history_block, owner_row, read_history, read_springs, slot_row, write_history
 from taimill.physics.response import contact_energy, contact_response, rolling_response
 from taimill.physics.ti import ti
 from taimill.physics.walls import wall_near
@@ -57,10 +61,11 @@ def share_with_partner(F: ti.template(), b, i, k, f, tq):
 
 
 @ti.func
-def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
+def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt, block):
     """Contact of balls i and j: (force on i, torque on i, dissipated normal and by
     friction, whether it is an impact, stored, slot bit of i's event or 0). Events and
-    the ledger are booked by the owner, i < j."""
+    the ledger are booked by the owner, i < j. block: the history block this step reads
+    (pool.history_block)."""
     f = ti.Vector([0.0, 0.0, 0.0])
     tq = ti.Vector([0.0, 0.0, 0.0])
     diss_n, diss_t, impact, stored, bit = 0.0, 0.0, False, 0.0, 0
@@ -88,10 +93,22 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
         owner = S.owns(F, b, i, j)
         k, row, is_new = -1, -1, False
         hist_t, e_t, hist_r, e_r = ti.Vector([0.0, 0.0, 0.0]), 0.0, ti.Vector([0.0, 0.0, 0.0]), 0.0
-        if ti.static(F.history[0]):  # the owner reads the history before the response (fused mode)
+        if ti.static(F.history[0]):  # the history is read before the response
             if owner:
                 k, row, is_new = claim_row(F, b, i, j, was_open | seen, was_open)
-                hist_t, e_t, hist_r, e_r = read_history(F, b, row, is_new)
+                hist_t, e_t, hist_r, e_r = read_history(F, b, row, is_new, block)
+            elif ti.static(F.prev_mask):
+                # The partner reads the owner's history, negated: it is kept from the
+                # owner's side, and the response is antisymmetric to the bit in it too
+                # (ξ + slip dt, its projection and the cap; M_r + k_r dt ω_r and its
+                # cap). No row: the contact opens in this step, with zero history,
+                # exactly when the owner's claim finds it new: the owner's slots open
+                # at the step's start (slot_mask then, slot_prev now) hold a slot for
+                # ball i iff owner_row finds it, and the slots it opens in this step
+                # before reaching i are for other balls (a list names a ball once).
+                prev = owner_row(F, b, i, j)
+                hist_t, hist_r = read_springs(F, b, prev, prev < 0, block)
+                hist_t, hist_r = -hist_t, -hist_r
         fc, udot, slip, fn, fel, ft, new_t, new_e_t = contact_response(F, b, 0, u, nrm, vrel, m_eff, inv_mass_t, dt,
                                                                        hist_t)
         f, tq = fc, ai.cross(fc)
@@ -116,7 +133,7 @@ def ball_pair(F: ti.template(), b, i, j, was_open, seen, t, w, dt):
                 bit = 1 << k
                 impact = book_contact(F, b, row, is_new, t, u, udot, slip, xi + ai, fn, dn, dtf)
                 if ti.static(F.history[0]):
-                    write_history(F, b, row, new_t, new_e_t, new_r, new_e_r)
+                    write_history(F, b, row, block, new_t, new_e_t, new_r, new_e_r)
                 share_with_partner(F, b, i, k, -fc, aj.cross(-fc) - m_roll)
     return f, tq, diss_n, diss_t, impact, stored, bit
 
@@ -134,6 +151,9 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
     drive, diss, stored = 0.0, 0.0, 0.0
     was_open = F.contacts.slot_mask[b, i]
     seen = 0
+    block = 0
+    if ti.static(F.history[0] or F.history[1]):
+        block = history_block(F, b)
     for wall in ti.static(range(S.WALLS)):
         phi, grad = wall_near(F, b, i, wall, xi, ri)  # exact where φ < r: all that matters here
         u = ri - phi
@@ -150,7 +170,7 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
             hist_t, e_t, hist_r, e_r = ti.Vector([0.0, 0.0, 0.0]), 0.0, ti.Vector([0.0, 0.0, 0.0]), 0.0
             if ti.static(F.history[1]):
                 row = slot_row(F, b, i, wall, is_new, was_open | seen)
-                hist_t, e_t, hist_r, e_r = read_history(F, b, row, is_new)
+                hist_t, e_t, hist_r, e_r = read_history(F, b, row, is_new, block)
             fc, udot, slip, fn, fel, ft, new_t, new_e_t = contact_response(F, b, 1, u, nrm, vrel, mi, inv_mass_t, dt,
                                                                            hist_t)
             dn, dtf, el = contact_energy(F, b, 1, u, udot, slip, fn, fel, ft, mi, inv_mass_t, dt)
@@ -178,7 +198,7 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
                 seen |= 1 << wall
                 impact = book_contact(F, b, row, is_new, t, u, udot, slip, p, fn, dn, dtf)
                 if ti.static(F.history[1]):
-                    write_history(F, b, row, new_t, new_e_t, new_r, new_e_r)
+                    write_history(F, b, row, block, new_t, new_e_t, new_r, new_e_r)
             book_mechanism(F, b, i, 1 + wall, impact, dn, dtf)
     # The neighbours that touch are gathered first, without a branch: whether one
     # touches is often a coin toss (on a bed 4.7 of 11.6), and a mispredicted branch
@@ -192,7 +212,7 @@ def ball_forces(F: ti.template(), b, i, t, dr, dt):
         n_touching += ti.cast((F.state.x[b, j] - xi).norm_sqr() < rr * rr, ti.i32)
     for q in range(n_touching):
         j = touching[q]
-        fj, tj, dnj, dtj, impact, ej, bit = ball_pair(F, b, i, j, was_open, seen, t, w, dt)
+        fj, tj, dnj, dtj, impact, ej, bit = ball_pair(F, b, i, j, was_open, seen, t, w, dt, block)
         f += fj
         tq += tj
         diss += dnj + dtj

@@ -18,7 +18,7 @@ import numpy as np
 from taimill.physics import state as S
 from taimill.physics.neighbours import rebuild_parallel, rebuild_serial
 from taimill.physics.contacts import ball_forces
-from taimill.physics.pool import pool_settle, release_rows
+from taimill.physics.pool import keep_open_mask, pool_settle, release_rows
 from taimill.physics.frame import drive_turning, psi_at, steady, ramp_at, ramp_turn, wall_velocity_ground
 from taimill.physics.integrator import frame_acceleration, integrate
 from taimill.physics.ti import internal, ti
@@ -273,6 +273,7 @@ def one_step(F: ti.template(), margin, last, with_frame: ti.template()):
     for i in range(n * go):
         integrate(F, 0, i, dr, dt, a_frame)
         release_rows(F, 0, i)  # after the force pass, the only one that takes rows
+        keep_open_mask(F, 0, i)
     if go:
         F.state.step[0] = st + 1
 

@@ -27,7 +27,11 @@ def book_contact(F: ti.template(), b, row, is_new, t, u, udot, slip, p, fn, dn, 
         q[S.SLOT_UPEAK] = ti.max(q[S.SLOT_UPEAK], u)
         q[S.SLOT_DN] += dn
         q[S.SLOT_DT] += dtf
-        F.contacts.pool[b, row] = q
+        if ti.static(F.pool_width == S.SLOT_DATA):
+            F.contacts.pool[b, row] = q
+        else:  # not the history: in parallel mode the partner's thread reads it meanwhile
+            for c in ti.static(range(S.SLOT_DATA)):
+                F.contacts.pool[b, row][c] = q[c]
         impact = q[S.SLOT_UN] >= F.model.stress_un[b] and t - q[S.SLOT_T0] <= F.model.impact_age[b]
     return impact
 

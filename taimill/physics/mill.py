@@ -66,6 +66,7 @@ def write_mill(F, b: int, spec: MillSpec):
                  (spec.position, spec.velocity, spec.spin, spec.radius, spec.mass, 1.0 / spec.inertia,
                   SP.EDGES, SP.SCALE)))
     F.state.step[b] = 0
+    F.contacts.history_shift[b] = 0
     F.state.status[b] = S.OK
     F.state.bad_ball[b] = -1
     F.out.n_events[b] = 0
@@ -89,7 +90,10 @@ def set_drive(F, b: int, plate: Ramp, jar: Ramp):
 def set_clock(F, b: int, dt: float, step: int, frame_every: int):
     """The time step dt (s) of mill b, its step counter (the kernels' time is t =
     step·dt, s, so a new dt comes with the step that keeps t) and the steps between
-    trajectory frames (which a new dt changes)."""
+    trajectory frames (which a new dt changes). The contacts' history block stays the
+    one the next step would have read (pool.history_block: the step's parity)."""
+    shift = int(F.contacts.history_shift[b]) + int(F.state.step[b]) - step
+    F.contacts.history_shift[b] = shift % 2
     F.model.dt[b] = dt
     F.state.step[b] = step
     F.model.frame_every[b] = frame_every
@@ -145,6 +149,8 @@ def _load_mill(F: ti.template(), b: ti.i32, n: ti.i32, n_pieces: ti.i32, pieces:
         F.state.side_ref[b, i] = ti.Vector([0.0, 0.0, -1.0])  # no bound yet: evaluate the profile first
         F.contacts.slot_mask[b, i] = 0
         F.contacts.slot_closed[b, i] = 0
+        if ti.static(F.prev_mask):
+            F.contacts.slot_prev[b, i] = 0
         if ti.static(F.reorder):  # rows in the spec's order until the first list build
             F.state.user_of[b, i] = i
             F.state.row_of[b, i] = i

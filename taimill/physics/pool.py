@@ -124,25 +124,96 @@ def claim_row(F: ti.template(), b, i, j, taken, was_open):
 
 
 @ti.func
-def read_history(F: ti.template(), b, row, is_new):
+def history_block(F: ti.template(), b):
+    """The history block (0 or 1) of a pool row that mill b's contacts read in this step;
+    they write the other, which the next step reads. In parallel mode both balls of a
+    contact compute it, each on its own thread: the partner reads the block the owner
+    reads, which no thread writes in this step. The step's parity picks it;
+    contacts.history_shift keeps that parity when mill.set_clock sets the step. With
+    one block (state.Fields.history_copies: no partner reads it) always 0."""
+    block = 0
+    if ti.static(F.history_copies == 2):
+        block = ti.cast((F.state.step[b] + F.contacts.history_shift[b]) & 1, ti.i32)
+    return block
+
+
+@ti.func
+def _springs_at(F: ti.template(), b, row, col: ti.template()):
+    return ti.Vector([F.contacts.pool[b, row][col + c] for c in ti.static(range(S.HISTORY))])
+
+
+@ti.func
+def _keep_springs_at(F: ti.template(), b, row, col: ti.template(), h):
+    for c in ti.static(range(S.HISTORY)):
+        F.contacts.pool[b, row][col + c] = h[c]
+
+
+@ti.func
+def read_springs(F: ti.template(), b, row, is_new, block):
+    """(tangential spring ξ, rolling spring M_r) of the contact in pool row `row`, from
+    history block `block`: zero for a new contact or without a row. Kept from the
+    owner's side (the ball of lower own index)."""
+    h = ti.Vector.zero(ti.f64, S.HISTORY)
+    if row >= 0 and not is_new:
+        if ti.static(F.history_copies == 1):
+            h = _springs_at(F, b, row, S.SLOT_SPRINGS)
+        elif block == 0:
+            h = _springs_at(F, b, row, S.SLOT_SPRINGS)
+        else:
+            h = _springs_at(F, b, row, S.SLOT_SPRINGS + S.HISTORY)
+    xi = ti.Vector([h[S.HIST_XI + c] for c in ti.static(range(3))])
+    m_r = ti.Vector([h[S.HIST_MR + c] for c in ti.static(range(3))])
+    return xi, m_r
+
+
+@ti.func
+def read_history(F: ti.template(), b, row, is_new, block):
     """(tangential history ξ, its stored energy, rolling history M_r, its stored energy)
-    of the contact in pool row `row`: zero for a new contact or without a row."""
-    xi = ti.Vector([0.0, 0.0, 0.0])
-    m_r = ti.Vector([0.0, 0.0, 0.0])
+    of the contact in pool row `row` as its owner reads it: the springs (read_springs)
+    and the energies they stored at the last step."""
+    xi, m_r = read_springs(F, b, row, is_new, block)
     e_xi, e_mr = 0.0, 0.0
     if row >= 0 and not is_new:
-        q = F.contacts.pool[b, row]
-        xi = ti.Vector([q[S.SLOT_XI], q[S.SLOT_XI + 1], q[S.SLOT_XI + 2]])
-        m_r = ti.Vector([q[S.SLOT_MR], q[S.SLOT_MR + 1], q[S.SLOT_MR + 2]])
-        e_xi, e_mr = q[S.SLOT_EXI], q[S.SLOT_EMR]
+        e_xi, e_mr = F.contacts.pool[b, row][S.SLOT_EXI], F.contacts.pool[b, row][S.SLOT_EMR]
     return xi, e_xi, m_r, e_mr
 
 
 @ti.func
-def write_history(F: ti.template(), b, row, xi, e_xi, m_r, e_mr):
-    """Keep a contact's history in its pool row for the next step."""
-    for c in ti.static(range(3)):
-        F.contacts.pool[b, row][S.SLOT_XI + c] = xi[c]
-        F.contacts.pool[b, row][S.SLOT_MR + c] = m_r[c]
+def write_history(F: ti.template(), b, row, block, xi, e_xi, m_r, e_mr):
+    """Keep a contact's history in its pool row for the next step: the springs in the
+    block that this step does not read (with two)."""
+    h = ti.Vector([xi[0], xi[1], xi[2], m_r[0], m_r[1], m_r[2]])
+    if ti.static(F.history_copies == 1):
+        _keep_springs_at(F, b, row, S.SLOT_SPRINGS, h)
+    elif block == 0:
+        _keep_springs_at(F, b, row, S.SLOT_SPRINGS + S.HISTORY, h)
+    else:
+        _keep_springs_at(F, b, row, S.SLOT_SPRINGS, h)
     F.contacts.pool[b, row][S.SLOT_EXI] = e_xi
     F.contacts.pool[b, row][S.SLOT_EMR] = e_mr
+
+
+@ti.func
+def owner_row(F: ti.template(), b, i, j):
+    """Pool row of the contact of ball i with its owner j if it was open when this step
+    began, else -1: a walk of j's slots as they were then (contacts.slot_prev), whose
+    partners and rows no thread changes in this step (j's thread claims only slots free
+    then, partner_slot, and rewrites slot_mask, not slot_prev). Ball i's visit reads
+    the owner's history from that row (parallel mode)."""
+    row = -1
+    mask = F.contacts.slot_prev[b, j] >> S.WALLS
+    k = S.WALLS
+    while mask:
+        if mask & 1 and F.contacts.slot_partner[b, j, k] == i:
+            row = F.contacts.slot_row[b, j, k]
+        mask >>= 1
+        k += 1
+    return row
+
+
+@ti.func
+def keep_open_mask(F: ti.template(), b, i):
+    """Ball i's open slots as the next step begins, for its partners' owner_row (after
+    release_rows; reorder.py and mill.py keep it too)."""
+    if ti.static(F.prev_mask):
+        F.contacts.slot_prev[b, i] = F.contacts.slot_mask[b, i]

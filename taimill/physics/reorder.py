@@ -15,8 +15,9 @@ bit-identical to it (tests/test_reorder.py).
 What moves: state (x, v, s), ball properties (r, m, inv_i; inv_m is recomputed from m,
 the same division as at the start), the side-wall bound (side_ref), the energy ledger
 (drive_work, dissipated, elastic, mech) and the open contacts (slot_mask, slot_row,
-slot_partner, whose partner rows are renumbered). A ball's home rows of the pool move
-with it (state.HOME_ROWS: its slots' home row numbers follow); the shared rows stay
+slot_partner, whose partner rows are renumbered, and slot_prev, equal to slot_mask
+between steps). A ball's home rows of the pool move with it, every column, history
+included (state.HOME_ROWS: its slots' home row numbers follow); the shared rows stay
 where they are. Per-step scratch (f, tau, drive_step, diss_step) is rewritten by the
 next force pass before it is read, x_ref, nbr and nbr_count by the list build that
 follows, and slot_closed is empty between steps (release_rows): none of them moves.
@@ -98,9 +99,10 @@ def _gather_home(F: ti.template(), h: ti.i32, c0: ti.i32):
     for q in range(F.model.n_balls[0]):
         data = F.contacts.pool[0, F.spatial.sorted_ids[0, q] * F.home + h]
         row = ti.Vector.zero(ti.f64, 3)
-        for k, c in ti.static(ti.ndrange(3, S.SLOT_DATA)):
-            if c == c0 + k:
-                row[k] = data[c]
+        for c in ti.static(range(F.pool_width)):  # (unrolled: nested, not ndrange, < 32 a loop)
+            for k in ti.static(range(3)):
+                if c == c0 + k:
+                    row[k] = data[c]
         F.spatial.x_ref[0, q] = row
 
 
@@ -108,11 +110,10 @@ def _gather_home(F: ti.template(), h: ti.i32, c0: ti.i32):
 def _put_home(F: ti.template(), h: ti.i32, c0: ti.i32):
     for q in range(F.model.n_balls[0]):
         row = F.spatial.x_ref[0, q]
-        data = F.contacts.pool[0, q * F.home + h]
-        for k, c in ti.static(ti.ndrange(3, S.SLOT_DATA)):
-            if c == c0 + k:
-                data[c] = row[k]
-        F.contacts.pool[0, q * F.home + h] = data
+        for c in ti.static(range(F.pool_width)):  # only these columns: a row of history is 24
+            for k in ti.static(range(3)):
+                if c == c0 + k:
+                    F.contacts.pool[0, q * F.home + h][c] = row[k]
 
 
 @ti.kernel
@@ -139,6 +140,8 @@ def _put_ints(F: ti.template()):
     """Also the grid's order: the rows are now in it (sorted_ids the identity)."""
     for q in range(F.model.n_balls[0]):
         F.contacts.slot_mask[0, q] = F.spatial.nbr[0, q, 0]
+        if ti.static(F.prev_mask):
+            F.contacts.slot_prev[0, q] = F.spatial.nbr[0, q, 0]
         u = F.spatial.nbr[0, q, 1]
         F.state.user_of[0, q] = u
         F.state.row_of[0, u] = q
@@ -163,7 +166,7 @@ def permute(F):
         _put_mech(F, c0)
     _inverse_masses(F)
     for h in range(F.home):
-        for c0 in range(0, S.SLOT_DATA, 3):
+        for c0 in range(0, F.pool_width, 3):
             _gather_home(F, h, c0)
             _put_home(F, h, c0)
     _gather_ints(F)  # last: it needs the old sorted_ids, _put_ints makes them the identity

@@ -198,9 +198,7 @@ def _runner_shape(specs, mode=None, use_grid=None, pool=None, reorder=None) -> t
     """The engine key (_engine_key) a Runner of `specs` uses."""
     n = max(s.n for s in specs)
     use_grid = n > ALL_PAIRS_UP_TO if use_grid is None else use_grid
-    # a history model's contact is computed once, by its owner: the fused mode's order
-    history = any(m.tangential.history or m.rolling.history for s in specs for m in s.contact_models)
-    mode = mode or ("parallel" if len(specs) == 1 and n > parallel_above(*where()) and not history else "fused")
+    mode = mode or ("parallel" if len(specs) == 1 and n > parallel_above(*where()) else "fused")
     cells = 1 << max(grid_cells_for(s) for s in specs).bit_length()
     return _engine_key(len(specs), n, mode, use_grid, cells, frame_capacity(specs), pool, reorder, models_of(specs))
 

@@ -25,11 +25,23 @@ SLOTS = WALLS + PARTNER_SLOTS
 SLOT_T0, SLOT_UN, SLOT_UT, SLOT_PX, SLOT_PY, SLOT_PZ, SLOT_FPEAK, SLOT_UPEAK, SLOT_DN, SLOT_DT = range(10)
 SLOT_DATA = 10
 # History of a contact whose tangential or rolling model keeps one, after the
-# accumulators in its pool row (present only in engines compiled for such a model):
-# tangential spring ξ (m, 3), the energy it stored at the last step (J), rolling spring
-# torque (N m, 3), its stored energy (J).
-SLOT_XI, SLOT_EXI, SLOT_MR, SLOT_EMR = SLOT_DATA, SLOT_DATA + 3, SLOT_DATA + 4, SLOT_DATA + 7
-HISTORY = 8
+# accumulators in its pool row (present only in engines compiled for such a model): the
+# energy its tangential and its rolling spring stored at the last step (J; only the
+# owner's thread reads and writes them), then the springs, tangential ξ (m, 3) and
+# rolling torque M_r (N m, 3), in blocks of HISTORY columns. Where both balls of a
+# contact compute it (parallel mode) in two blocks: a step reads one and writes the
+# other (pool.history_block), so a partner's thread reads what the owner read while the
+# owner writes. 24 columns, 192 bytes: three cache lines, as many as a row of 18 columns
+# spans at 16-byte offsets; with the energies in the blocks too (26 columns, four lines)
+# the history cost twice as much (fused mode, the simple cubic bed of 2·10⁴ balls of
+# scripts/bench.py: 94-95 ns of CPU per ball-step against 73-82 with one block, 53-60
+# without history). The fused mode, where only the owner reads a contact's history,
+# keeps one block (18 columns): two cost it 12 % on the face-centred cubic bed of 2·10⁴
+# balls, 2.7 open contacts a ball (383-386 against 339-350 ns, interleaved runs).
+SLOT_EXI, SLOT_EMR = SLOT_DATA, SLOT_DATA + 1
+SLOT_SPRINGS = SLOT_DATA + 2  #: the first history block's first column
+HIST_XI, HIST_MR = 0, 3
+HISTORY = 6
 
 # Event record columns as the kernel writes them: the schema's event columns without
 # those the launcher derives after each launch (the stress energies).
@@ -149,14 +161,18 @@ class Fields:
         self.models = tuple(tuple(m) for m in (models or default_models()))
         # per contact type: a model keeps a per-contact history (in its pool row)
         self.history = tuple(any(m.tangential.history or m.rolling.history for m in ms) for ms in self.models)
-        self.pool_width = SLOT_DATA + (HISTORY if any(self.history) else 0)
-        if reorder and any(self.history):  # reorder.py moves rows of SLOT_DATA columns
-            raise ValueError("contact models with history run in fused mode only")
         if reorder and (B != 1 or share_pairs):
             raise ValueError("balls are stored in grid order only in parallel mode (one mill)")
         # the balls' forces are computed one after another in index order (fused mode):
         # a pair's owner leaves the partner's force and torque (contacts.partner_share)
         self.share_pairs = share_pairs
+        # otherwise both balls of a history contact compute it, the partner with the
+        # owner's history, found through the owner's slots as they were at the step's
+        # start (contacts.slot_prev: the owner's thread rewrites slot_mask meanwhile),
+        # from the second of two history blocks (pool.history_block)
+        self.prev_mask = self.history[0] and not share_pairs
+        self.history_copies = 2 if self.prev_mask else 1
+        self.pool_width = SLOT_SPRINGS + self.history_copies * HISTORY if any(self.history) else SLOT_DATA
         # parallel mode: ball rows are kept in the order of the grid cells, refreshed at
         # every neighbour-list build (reorder.py); user_of maps a row to the ball's own
         # index, which every output and the contact ownership use
@@ -284,6 +300,8 @@ class Fields:
         shared = (B, N, SLOTS) if self.share_pairs else (1, 1, 1)
         contacts.pair_f = ti.field(vec3, shared)  #: N, force of this step on the partner of slot k
         contacts.pair_tq = ti.field(vec3, shared)  #: N m, torque of this step on the partner of slot k
+        contacts.slot_prev = ti.field(i32, (B, N) if self.prev_mask else (1, 1))  #: slot_mask at the step's start
+        contacts.history_shift = ti.field(i32, B)  #: added to the step, whose parity picks the history block read
 
     def _spatial_fields(self):
         """The spatial hash [B, cells] and [B, N], the Verlet neighbour lists [B, N, NEIGHBOURS]."""

@@ -83,7 +83,7 @@ DERIVED_EVENT_COLUMNS = {
 
 # ---------------------------------------------------------------- run summary
 # Summary entries that describe the machine, not the run: equal runs on other machines,
-# thread counts or backends differ in these alone (`compute`: physics.backend.current).
+# thread counts or backends differ in these alone (`compute`: physics.ti.compute).
 MACHINE_KEYS = ("wall_seconds", "realtime_factor", "compute")
 # The regime split as the regime map splits it (taimill.analysis.regime.MAP_REGIMES,
 # the summary's `regime_class`), repeated here so that this module imports nothing.
@@ -159,7 +159,7 @@ SUMMARY_UNITS: dict[str, str] = {
     "sampled_share": "1",  # wear_hot_spot
     "critical_ratio": "1", "single_ball_se": "J",
     "analysis_window": "s", "sim_seconds": "s", "wall_seconds": "s", "realtime_factor": "1", "dt": "s",
-    "compute": "1",  # backend and device names, a thread count (physics.backend.current)
+    "compute": "1",  # backend and device names, a thread count (physics.ti.compute)
     "steps": "1", "ratio": "1", "plate_rpm": "rpm",
     # taimill analyse
     "r_edges": "m", "g": "1", "wall_energy": "J",

@@ -114,7 +114,7 @@ try:
 except ValueError as err:
     print(err)
     sys.exit(2)
-print("started on", backend.current()["backend"])
+print("started on", ti.compute()["backend"])
 """
 
 

@@ -155,7 +155,7 @@ def add_backend(p) -> None:
 def backend(a) -> str:
     """The backend --backend (else TAIMILL_BACKEND) names, checked before anything runs
     and handed on to the processes this one spawns (physics.backend.select)."""
-    from taimill.physics.backend import select
+    from taimill.runs.simulation import select_backend as select
 
     return select(getattr(a, "backend", None))
 

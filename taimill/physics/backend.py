@@ -8,8 +8,8 @@ The choice comes from the command line (`--backend` on run, sweep, design and tu
 else from the environment variable TAIMILL_BACKEND, else the default. The command
 line's choice is written into the variable, so that the processes a sweep or a
 design study spawns run where their parent was told to. `physics.ti.init_taichi`
-asks `arch()` which Taichi arch to start; `current()` then says what runs (the
-summary's `compute`).
+asks `arch()` which Taichi arch to start; `physics.ti.compute()` then says what runs
+(the summary's `compute`).
 
 The kernels are the same on every backend and each ball sums its own contacts in
 list order, so results agree across backends to the rounding of the device's
@@ -124,17 +124,3 @@ def cpu_model() -> str:
     except OSError:
         pass
     return platform.processor() or platform.machine() or "unknown CPU"
-
-
-def current() -> dict:
-    """What runs this process's kernels, once Taichi has started (init_taichi):
-    {"backend": "cpu" or "cuda", "device": the processor's or the GPU's name,
-    "threads": the CPU threads Taichi may use}. Recorded with every run (the summary's
-    `compute`); it describes the machine, not the run, so equal runs on other machines
-    or thread counts differ in it alone."""
-    from taimill.physics.ti import internal, ti
-
-    cfg = internal("lang.impl").current_cfg()
-    on_cuda = cfg.arch == ti.cuda
-    device = (cuda_devices() or ("CUDA device",))[0] if on_cuda else cpu_model()
-    return {"backend": "cuda" if on_cuda else "cpu", "device": device, "threads": int(cfg.cpu_max_num_threads)}

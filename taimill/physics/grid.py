@@ -73,6 +73,16 @@ def span(k, n):
     return k * SCAN_BLOCK, ti.min((k + 1) * SCAN_BLOCK, n)
 
 
+@ti.func
+def scan(a: ti.template(), lo, hi, start):
+    """a[lo:hi] ← its running sum from `start`, each item the sum before it."""
+    running = start
+    for k in range(lo, hi):
+        total = a[k]
+        a[k] = running
+        running += total
+
+
 @ti.kernel
 def prefix_cells(F: ti.template()):
     cells = n_cells(F, 0)
@@ -92,18 +102,10 @@ def prefix_cells(F: ti.template()):
         F.spatial.group_start[g] = total
     ti.loop_config(serialize=True)
     for _ in range(1):
-        running = 0
-        for g in range(groups):
-            total = F.spatial.group_start[g]
-            F.spatial.group_start[g] = running
-            running += total
+        scan(F.spatial.group_start, 0, groups, 0)
     for g in range(groups):
         lo, hi = span(g, blocks)
-        running = F.spatial.group_start[g]
-        for k in range(lo, hi):
-            total = F.spatial.block_start[k]
-            F.spatial.block_start[k] = running
-            running += total
+        scan(F.spatial.block_start, lo, hi, F.spatial.group_start[g])
     for k in range(blocks):
         lo, hi = span(k, cells)
         running = F.spatial.block_start[k]

@@ -182,7 +182,7 @@ def where() -> tuple[str, int]:
     from taimill.physics import backend, ti as T
 
     if T._initialised:
-        c = backend.current()
+        c = T.compute()
         return c["backend"], c["threads"]
     return backend.arch(), int(os.environ.get("TI_CPU_MAX_NUM_THREADS") or 0) or os.cpu_count() or 1
 

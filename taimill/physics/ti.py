@@ -264,3 +264,17 @@ def init_taichi(threads: int | None = None, share: int = 1):
         raise ConfigError(source, key, asked, f"{describe()} did not start on the CUDA device "
                           f"{backend.cuda_devices()[0]} (built without CUDA?); use --backend cpu")
     _initialised = True
+
+
+def compute() -> dict:
+    """What runs this process's kernels, once Taichi has started (init_taichi):
+    {"backend": "cpu" or "cuda", "device": the processor's or the GPU's name,
+    "threads": the CPU threads Taichi may use}. Recorded with every run (the summary's
+    `compute`); it describes the machine, not the run, so equal runs on other machines
+    or thread counts differ in it alone."""
+    from taimill.physics import backend
+
+    cfg = internal("lang.impl").current_cfg()
+    on_cuda = cfg.arch == ti.cuda
+    device = (backend.cuda_devices() or ("CUDA device",))[0] if on_cuda else backend.cpu_model()
+    return {"backend": "cuda" if on_cuda else "cpu", "device": device, "threads": int(cfg.cpu_max_num_threads)}

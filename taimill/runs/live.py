@@ -45,6 +45,7 @@ from taimill.model.ranges import RANGES
 from taimill.model.spec import from_preset
 from taimill.physics.mill import set_clock, set_drive, set_friction
 from taimill.physics.runner import Runner
+from taimill.physics.ti import compute  # noqa: F401 - what runs the kernels, for the TUI's recordings
 from taimill.store.sinks import FanOut
 
 SOURCE = "TUI"  # names live input in ConfigError messages

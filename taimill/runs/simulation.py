@@ -11,7 +11,8 @@ from taimill.analysis.summary import SummarySink
 from taimill.errors import SimulationUnstable
 from taimill.model.spec import from_preset
 from taimill.outcome.dose import dose_keys, shear_keys
-from taimill.physics.backend import current
+from taimill.physics.backend import select as select_backend  # noqa: F401 - the CLI's way to it (layers)
+from taimill.physics.ti import compute
 from taimill.physics.runner import Runner, announcing  # announcing: the CLI says when kernels compile
 from taimill.runs import signals
 from taimill.runs.signals import sigterm_interrupts
@@ -35,7 +36,7 @@ def point_result(preset, spec, summary, runner, b, wall, status) -> dict:
     """Run summary (docs/outputs.md) of mill b of `runner`; wall in s."""
     result = summary.result(runner.time(b), wall)
     result.update(dt=spec.dt, steps=int(runner.engine.F.state.step[b]), status=status,
-                  ratio=preset.drive.ratio, plate_rpm=preset.drive.plate_rpm, compute=current())
+                  ratio=preset.drive.ratio, plate_rpm=preset.drive.plate_rpm, compute=compute())
     if preset.softening != 1.0:  # the run's contacts are not the measured ones: said with every result
         result["softening"] = preset.softening
     # the dose per gram of powder (with a [powder] table) and the gentle / shear view

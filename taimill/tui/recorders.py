@@ -21,7 +21,7 @@ import numpy as np
 from taimill.errors import ConfigError
 from taimill.store.sinks import FanOut, Relay
 from taimill.analysis.summary import SummarySink
-from taimill.physics.backend import current
+from taimill.runs.live import compute
 from taimill.tui.window import Rebased
 from taimill.schema import with_units
 
@@ -161,7 +161,7 @@ class Recording:
         result = self.summary.result(t, time.perf_counter() - self.wall_start)
         result["live_changes"] = [c for c in mill.changes if c["time"] >= self.t_start]
         result["recorded"] = [self.t_start, t]
-        result["compute"] = current()
+        result["compute"] = compute()
         result = with_units(result)
         self.file.finish(result, status)
         return result

@@ -28,9 +28,14 @@ def _thrown(n, duration, seed=1, radius_mm=1.5):
     return spec.replace(velocity=np.random.default_rng(seed).normal(0.0, 1.0, (spec.n, 3)))
 
 
+def _blocks_mill(duration):
+    """A mill of three blocks of the ledger's sums, a frame every 0.25 ms."""
+    spec = _thrown(2 * S.LEDGER_BLOCK + 300, duration)
+    return spec.replace(frame_every=max(1, round(0.00025 / spec.dt)))
+
+
 def test_a_mill_of_several_ledger_blocks_gives_the_same_bits_in_both_modes():
-    spec = _thrown(2 * S.LEDGER_BLOCK + 300, 0.004)
-    spec = spec.replace(frame_every=max(1, round(0.0005 / spec.dt)))  # a frame every 0.5 ms
+    spec = _blocks_mill(0.002)
     sinks = {}
     for mode in ("fused", "parallel"):
         sinks[mode] = MemorySink()
@@ -65,7 +70,7 @@ def test_the_blocked_prefix_sum_gives_every_cell_its_start():
 
 
 def test_advance_takes_exactly_the_steps_asked_for():
-    spec = _thrown(200, 0.01)
+    spec = _blocks_mill(0.01)  # the engine of the test above: no kernels to compile
     runner = Runner([spec], mode="parallel")
     assert runner.engine.steps_per_kernel > 1  # else this says nothing
     for n in (1, 3, 2, 5):

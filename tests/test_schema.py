@@ -26,8 +26,8 @@ def test_kernel_writes_every_event_column_once_by_name():
 
 def test_kernel_writes_every_ledger_column_once_by_name():
     # the named columns, then the mechanism block in the schema's order
-    src = (PHYSICS / "engine.py").read_text()
-    names = written(PHYSICS / "engine.py", "LEDGER")
+    src = (PHYSICS / "snapshot.py").read_text()
+    names = written(PHYSICS / "snapshot.py", "LEDGER")
     assert "row[S.LEDGER[S.MECHANISM_COLUMNS[c]]] = sums[5 + c]" in src
     assert sorted(names + list(MECHANISM_COLUMNS)) == sorted(k for k in ENERGY_COLUMNS if k != "time")
 

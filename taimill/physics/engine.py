@@ -19,8 +19,9 @@ from taimill.physics import state as S
 from taimill.physics.neighbours import rebuild_parallel, rebuild_serial
 from taimill.physics.contacts import ball_forces
 from taimill.physics.pool import keep_open_mask, pool_settle, release_rows
-from taimill.physics.frame import drive_turning, psi_at, steady, ramp_at, ramp_turn, wall_velocity_ground
+from taimill.physics.frame import drive_turning, psi_at, steady, ramp_turn
 from taimill.physics.integrator import frame_acceleration, integrate
+from taimill.physics.snapshot import frame_ball, frame_record, ledger_block, snapshot, sum_blocks
 from taimill.physics.ti import internal, ti
 
 PAD = 512
@@ -69,85 +70,6 @@ def psi_trig(F: ti.template(), b, t, dt):
             rec = ti.Vector([t, ti.cos(psi), ti.sin(psi)])
         F.state.psi_rec[b] = rec
     return rec[1], rec[2]
-
-
-# A frame's energy ledger sums every ball's share in own-index order, in blocks of
-# SUM_BLOCK balls: each block from 0.0, then the blocks' sums in block order. Parallel
-# mode sums the blocks on all threads and the fused mode one after another, with the
-# same additions: both modes and every thread count give the same bits, and a mill of
-# up to SUM_BLOCK balls the one running sum it always had.
-SUM_BLOCK = S.LEDGER_BLOCK
-NSUMS = 5 + S.NMECH  # kinetic, potential, elastic, drive work, dissipated, then each mechanism
-
-
-@ti.func
-def sum_blocks(F: ti.template(), b):
-    return (F.model.n_balls[b] + SUM_BLOCK - 1) // SUM_BLOCK
-
-
-@ti.func
-def frame_ball(F: ti.template(), b, k, u):
-    """Ball u (own index) into frame k."""
-    i = u
-    if ti.static(F.reorder):
-        i = F.state.row_of[b, u]
-    F.out.frame_x[b, k, u] = F.state.x[b, i]
-    F.out.frame_v[b, k, u] = F.state.v[b, i]
-    F.out.frame_s[b, k, u] = F.state.s[b, i]
-
-
-@ti.func
-def ledger_block(F: ti.template(), b, blk, dr):
-    """The energy sums (NSUMS: ground-frame kinetic energy, m g z, stored elastic
-    energy, drive work, dissipation, dissipation by mechanism), J, of the balls of
-    block blk, in own-index order."""
-    sums = ti.Vector.zero(ti.f64, NSUMS)
-    for u in range(blk * SUM_BLOCK, ti.min((blk + 1) * SUM_BLOCK, F.model.n_balls[b])):
-        i = u
-        if ti.static(F.reorder):
-            i = F.state.row_of[b, u]
-        x, v, s, m = F.state.x[b, i], F.state.v[b, i], F.state.s[b, i], F.model.m[b, i]
-        vg = v + wall_velocity_ground(x, dr, F.model.plate_radius[b])
-        sums[0] += 0.5 * m * vg.norm_sqr() + 0.5 * s.norm_sqr() / F.model.inv_i[b, i]
-        sums[1] += m * F.model.gravity[b] * x[2]
-        sums[2] += F.state.elastic[b, i]
-        sums[3] += F.state.drive_work[b, i]
-        sums[4] += F.state.dissipated[b, i]
-        for c in ti.static(range(S.NMECH)):
-            sums[5 + c] += F.state.mech[b, i, c]
-    return sums
-
-
-@ti.func
-def frame_record(F: ti.template(), b, k, t, sums):
-    """Frame k's time, drive and energy ledger (the schema's ledger columns, by name)
-    from the blocks' total `sums`; the frame is then taken."""
-    F.out.frame_t[b, k] = t
-    om, _, phi_p = ramp_at(F.model.plate_ramp[b], t)
-    w, _, phi_j = ramp_at(F.model.jar_ramp[b], t)
-    F.out.frame_drive[b, k] = ti.Vector([phi_p, om, phi_j, w])  # DRIVE_FIELDS order
-    row = ti.Vector.zero(ti.f64, S.NLEDGER)
-    row[S.LEDGER["kinetic"]] = sums[0]
-    row[S.LEDGER["potential"]] = sums[1]
-    row[S.LEDGER["elastic"]] = sums[2]
-    row[S.LEDGER["drive_work"]] = sums[3]
-    row[S.LEDGER["dissipated"]] = sums[4]
-    for c in ti.static(range(S.NMECH)):
-        row[S.LEDGER[S.MECHANISM_COLUMNS[c]]] = sums[5 + c]
-    F.out.frame_ledger[b, k] = row
-    F.out.n_frames[b] = k + 1
-
-
-@ti.func
-def snapshot(F: ti.template(), b, t, dr):
-    """Store a frame (balls by own index) and the energy ledger, in one thread."""
-    k = F.out.n_frames[b]
-    for u in range(F.model.n_balls[b]):
-        frame_ball(F, b, k, u)
-    sums = ledger_block(F, b, 0, dr)
-    for blk in range(1, sum_blocks(F, b)):
-        sums += ledger_block(F, b, blk, dr)
-    frame_record(F, b, k, t, sums)
 
 
 @ti.func

@@ -427,10 +427,9 @@ def meminfo_mib(key: str) -> float:
 
 
 def cpu_model() -> str:
-    if platform.processor():
-        return platform.processor()
-    with open("/proc/cpuinfo") as f:
-        return next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), "unknown")
+    from taimill.physics.backend import cpu_model  # what a run's summary records as its device
+
+    return cpu_model()
 
 
 def taichi_version() -> str:
@@ -1371,7 +1370,7 @@ def main():
         worker_main(args.worker)
         return
     if args.backend:
-        from taimill.physics.backend import ENV, select
+        from taimill.physics.backend import select
 
         try:
             select(args.backend)  # TAIMILL_BACKEND, which start_taichi's workers and the dense runs inherit

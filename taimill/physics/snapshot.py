@@ -8,17 +8,15 @@ from taimill.physics.frame import ramp_at, wall_velocity_ground
 from taimill.physics.ti import ti
 
 # A frame's energy ledger sums every ball's share in own-index order, in blocks of
-# SUM_BLOCK balls: each block from 0.0, then the blocks' sums in block order. Parallel
+# state.LEDGER_BLOCK balls: each block from 0.0, then the blocks' sums in block order. Parallel
 # mode sums the blocks on all threads and the fused mode one after another, with the
 # same additions: both modes and every thread count give the same bits, and a mill of
-# up to SUM_BLOCK balls the one running sum it always had.
-SUM_BLOCK = S.LEDGER_BLOCK
-NSUMS = 5 + S.NMECH  # kinetic, potential, elastic, drive work, dissipated, then each mechanism
+# up to LEDGER_BLOCK balls the one running sum it always had.
 
 
 @ti.func
 def sum_blocks(F: ti.template(), b):
-    return (F.model.n_balls[b] + SUM_BLOCK - 1) // SUM_BLOCK
+    return (F.model.n_balls[b] + S.LEDGER_BLOCK - 1) // S.LEDGER_BLOCK
 
 
 @ti.func
@@ -34,11 +32,11 @@ def frame_ball(F: ti.template(), b, k, u):
 
 @ti.func
 def ledger_block(F: ti.template(), b, blk, dr):
-    """The energy sums (NSUMS: ground-frame kinetic energy, m g z, stored elastic
+    """The energy sums (S.LEDGER_SUMS: ground-frame kinetic energy, m g z, stored elastic
     energy, drive work, dissipation, dissipation by mechanism), J, of the balls of
     block blk, in own-index order."""
-    sums = ti.Vector.zero(ti.f64, NSUMS)
-    for u in range(blk * SUM_BLOCK, ti.min((blk + 1) * SUM_BLOCK, F.model.n_balls[b])):
+    sums = ti.Vector.zero(ti.f64, S.LEDGER_SUMS)
+    for u in range(blk * S.LEDGER_BLOCK, ti.min((blk + 1) * S.LEDGER_BLOCK, F.model.n_balls[b])):
         i = u
         if ti.static(F.reorder):
             i = F.state.row_of[b, u]

@@ -85,8 +85,10 @@ def pool_rows(balls: int) -> int:
     return min(balls * SLOTS, max(POOL_FLOOR, POOL_PER_BALL * balls))
 
 
-# Balls per partial sum of a frame's energy ledger (engine.SUM_BLOCK).
+# Balls per partial sum of a frame's energy ledger, and the sums (kinetic, potential,
+# elastic, drive work, dissipated, then each mechanism: physics/snapshot.py).
 LEDGER_BLOCK = 1024
+LEDGER_SUMS = 5 + NMECH
 # Cells per block, and blocks per group, of the parallel prefix sum of the spatial hash
 # (grid.prefix_cells).
 SCAN_BLOCK = 256
@@ -342,7 +344,7 @@ class Fields:
         out.n_frames = ti.field(i32, B)
         # parallel mode: a frame's energy sums per block of balls (engine.ledger_block)
         blocks = -(-N // LEDGER_BLOCK) if B == 1 else 1
-        out.ledger_part = ti.Vector.field(5 + NMECH, f64, blocks)
+        out.ledger_part = ti.Vector.field(LEDGER_SUMS, f64, blocks)
         # energy spectra of the events closed so far [B, kind, class, measure, bin]
         # (taimill.model.spectra): events, and their energy in fixed point
         out.spectrum_count = ti.field(i64, (B, *SP.SHAPE))

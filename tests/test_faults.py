@@ -257,6 +257,31 @@ def test_an_interrupt_swallowed_on_its_way_out_is_raised_again():
     signals.check()  # the block is over: nothing left to raise
 
 
+def test_an_interrupt_between_a_coroutine_and_its_loop_prints_one_line():
+    """zarr's sync calls make a coroutine and then hand it to zarr's event-loop thread:
+    a SIGTERM landing between the two left the coroutine unawaited, and Python's
+    warning about it ("coroutine ... was never awaited") followed the fault's one line
+    at exit (`import liggghts`, one CI run in many)."""
+    script = (
+        "import asyncio, os, signal, time\n"
+        "from taimill.runs import signals\n"
+        "async def create_array(): pass\n"
+        "left = []\n"
+        "try:\n"
+        "    with signals.sigterm_interrupts():\n"
+        "        left.append(create_array())  # made, never handed to the loop\n"
+        "        os.kill(os.getpid(), signal.SIGTERM)\n"
+        "        time.sleep(5)\n"
+        "except KeyboardInterrupt as err:\n"
+        "    print(f'taimill: {err}', file=__import__('sys').stderr)\n"
+        "    raise SystemExit(err.exit_code)\n"
+    )
+    res = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True, timeout=60,
+                         env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert res.returncode == 143, res.stderr
+    assert res.stderr.strip().splitlines() == ["taimill: terminated (SIGTERM)"], res.stderr
+
+
 def test_overwrite_keeps_the_old_store_until_the_new_one_is_complete(reference, tmp_path):
     out = tmp_path / "run.zarr"
     shutil.copytree(reference, out)

@@ -13,6 +13,9 @@
   blocks. One raised inside a `__del__` (rerun's recording streams have one) cannot
   leave it: Python prints it as "Exception ignored in" with a traceback, which the block
   keeps quiet (`_quiet_unraisable`), the interrupt being remembered.
+- zarr's sync calls make a coroutine and then hand it to zarr's event-loop thread; an
+  interrupt landing between the two leaves that coroutine unawaited, and Python warned
+  about it at exit, after the fault's one line. Once interrupted, that warning is off.
 - `die_with_parent(pid)`: a sweep's worker process dies with the process that started
   it, also when that one is killed with SIGKILL and can clean nothing up. On Linux the
   kernel does it (prctl PR_SET_PDEATHSIG); elsewhere a thread polls os.getppid().
@@ -27,6 +30,7 @@ import signal
 import sys
 import threading
 import time
+import warnings
 
 from taimill.errors import Interrupted
 
@@ -43,6 +47,8 @@ _held = {"depth": 0, "pending": None, "seen": None}
 
 def _interrupt(err: KeyboardInterrupt) -> None:
     _held["seen"] = err
+    # what it cut off between a coroutine's making and its loop is not the user's fault (module doc)
+    warnings.filterwarnings("ignore", message=r"coroutine .* was never awaited", category=RuntimeWarning)
     if _held["depth"]:
         _held["pending"] = err
         return

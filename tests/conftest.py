@@ -1,4 +1,5 @@
 import os
+import signal
 
 import pytest
 
@@ -8,6 +9,13 @@ import pytest
 # tests wait on each other's spinning thread pools (one test went from 8 s to 196 s).
 if os.environ.get("PYTEST_XDIST_WORKER"):
     os.environ.setdefault("TI_CPU_MAX_NUM_THREADS", "1")
+
+# The Ctrl-C tests send SIGINT as a terminal does. A suite started where SIGINT is
+# ignored (a background job of a non-interactive shell, `make test &`) passes that on
+# across exec, Python keeps it ignored, and every Ctrl-C test failed (a run that ignores
+# the signal is right to). The suite takes SIGINT back, so what it starts gets it too.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope="session")

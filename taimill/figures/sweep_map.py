@@ -6,7 +6,6 @@ panel per combination of the other swept values."""
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 

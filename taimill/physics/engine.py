@@ -22,7 +22,7 @@ from taimill.physics.pool import keep_open_mask, pool_settle, release_rows
 from taimill.physics.frame import drive_turning, psi_at, steady, ramp_turn
 from taimill.physics.integrator import frame_acceleration, integrate
 from taimill.physics.snapshot import frame_ball, frame_record, ledger_block, snapshot, sum_blocks
-from taimill.physics.ti import internal, ti
+from taimill.physics.ti import ti, where
 
 PAD = 512
 PSI_RESYNC = 4096  # steps between exact evaluations of cos ψ, sin ψ (psi_trig)
@@ -288,7 +288,7 @@ class Engine:
         self.F = S.Fields(batch, n, events, frames, grid_cells, pool, share_pairs=mode == "fused", reorder=reorder,
                           models=models)
         self._spare: dict[int, list[np.ndarray]] = {}  # drain's frame arrays per mill (_frame_arrays)
-        on_gpu = internal("lang.impl").current_cfg().arch == ti.cuda
+        on_gpu = where()[0] == "cuda"
         self.steps_per_kernel = self.STEPS_PER_KERNEL_ON_GPU if on_gpu else self.STEPS_PER_KERNEL
 
     @property

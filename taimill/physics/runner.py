@@ -17,7 +17,6 @@ import functools
 import hashlib
 import json
 import math
-import os
 import time
 from pathlib import Path
 
@@ -27,7 +26,7 @@ from taimill.errors import SimulationUnstable
 from taimill.physics import state as S
 from taimill.physics.engine import Engine, advance_fused, export_events, export_frames, step_flags, step_parallel
 from taimill.physics.mill import write_mill
-from taimill.physics.ti import cache_folder, describe, init_taichi
+from taimill.physics.ti import cache_folder, describe, init_taichi, where
 from taimill.model.cost import step_seconds
 from taimill.model.spec import MillSpec, grid_cells_for
 from taimill.model.spectra import Spectra
@@ -174,17 +173,6 @@ def _source_digest() -> str:
     for path in sorted([*root.glob("physics/*.py"), *root.glob("model/**/*.py")]):
         h.update(path.read_bytes())
     return h.hexdigest()[:16]
-
-
-def where() -> tuple[str, int]:
-    """("cpu" or "cuda", CPU threads) this process's kernels run on, or will once Taichi
-    starts (the backend asked for; TI_CPU_MAX_NUM_THREADS, else every core)."""
-    from taimill.physics import backend, ti as T
-
-    if T._initialised:
-        c = T.compute()
-        return c["backend"], c["threads"]
-    return backend.arch(), int(os.environ.get("TI_CPU_MAX_NUM_THREADS") or 0) or os.cpu_count() or 1
 
 
 def parallel_above(arch: str, threads: int) -> int:

@@ -20,11 +20,18 @@ def sum_blocks(F: ti.template(), b):
 
 
 @ti.func
-def frame_ball(F: ti.template(), b, k, u):
-    """Ball u (own index) into frame k."""
+def row(F: ti.template(), b, u):
+    """The row of ball u (own index): its own index unless the rows are in grid order."""
     i = u
     if ti.static(F.reorder):
         i = F.state.row_of[b, u]
+    return i
+
+
+@ti.func
+def frame_ball(F: ti.template(), b, k, u):
+    """Ball u (own index) into frame k."""
+    i = row(F, b, u)
     F.out.frame_x[b, k, u] = F.state.x[b, i]
     F.out.frame_v[b, k, u] = F.state.v[b, i]
     F.out.frame_s[b, k, u] = F.state.s[b, i]
@@ -37,9 +44,7 @@ def ledger_block(F: ti.template(), b, blk, dr):
     block blk, in own-index order."""
     sums = ti.Vector.zero(ti.f64, S.LEDGER_SUMS)
     for u in range(blk * S.LEDGER_BLOCK, ti.min((blk + 1) * S.LEDGER_BLOCK, F.model.n_balls[b])):
-        i = u
-        if ti.static(F.reorder):
-            i = F.state.row_of[b, u]
+        i = row(F, b, u)
         x, v, s, m = F.state.x[b, i], F.state.v[b, i], F.state.s[b, i], F.model.m[b, i]
         vg = v + wall_velocity_ground(x, dr, F.model.plate_radius[b])
         sums[0] += 0.5 * m * vg.norm_sqr() + 0.5 * s.norm_sqr() / F.model.inv_i[b, i]

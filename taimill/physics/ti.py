@@ -266,6 +266,17 @@ def init_taichi(threads: int | None = None, share: int = 1):
     _initialised = True
 
 
+def where() -> tuple[str, int]:
+    """("cpu" or "cuda", CPU threads) this process's kernels run on, or will once Taichi
+    starts (the backend asked for; TI_CPU_MAX_NUM_THREADS, else every core)."""
+    if _initialised:
+        c = compute()
+        return c["backend"], c["threads"]
+    from taimill.physics import backend
+
+    return backend.arch(), int(os.environ.get("TI_CPU_MAX_NUM_THREADS") or 0) or os.cpu_count() or 1
+
+
 def compute() -> dict:
     """What runs this process's kernels, once Taichi has started (init_taichi):
     {"backend": "cpu" or "cuda", "device": the processor's or the GPU's name,

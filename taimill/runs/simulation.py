@@ -13,7 +13,7 @@ from taimill.model.spec import from_preset
 from taimill.outcome.dose import dose_keys, shear_keys
 from taimill.physics.backend import select as select_backend  # noqa: F401 - the CLI's way to it (layers)
 from taimill.physics.ti import compute
-from taimill.physics.runner import Runner, announcing  # announcing: the CLI says when kernels compile
+from taimill.physics.runner import Runner, announcing  # noqa: F401 - announcing: the CLI says when kernels compile
 from taimill.runs import signals
 from taimill.runs.signals import sigterm_interrupts
 from taimill.schema import with_units

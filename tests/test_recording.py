@@ -257,3 +257,42 @@ def test_record_refuses_bad_input(run, tmp_path):
     assert p.returncode == 2 and "--rrd" in p.stderr and "exists" in p.stderr
     p = cli("record", tmp_path, "--rrd", tmp_path / "x.rrd")
     assert p.returncode == 2 and "not a taimill run store" in p.stderr and not (tmp_path / "x.rrd").exists()
+
+
+class _StuckWriter:
+    """A recording whose flush never completes (rerun's file writer on a full disk once
+    never answered), or one that completes after `after` waits while the file grows."""
+
+    def __init__(self, path: Path, after: int | None = None):
+        self.path, self.after, self.waits = path, after, 0
+
+    def flush(self, timeout_sec):
+        self.waits += 1
+        if self.after is not None and self.waits > self.after:
+            return
+        if self.after is not None:  # a slow disk: the file grows while we wait
+            with open(self.path, "ab") as f:
+                f.write(b"x" * 10)
+        raise RuntimeError("Flush timed out - not all log messages were sent")
+
+
+def test_a_flush_that_never_ends_is_an_error_once_the_file_stops_growing(tmp_path):
+    from taimill.errors import StoreWriteError
+    from taimill.recording.sink import flush_while_growing
+
+    path = tmp_path / "x.rrd"
+    path.write_bytes(b"rrd")
+    slow = _StuckWriter(path, after=3)
+    flush_while_growing(slow, path, stall=0.01)  # it grew at each wait: waited on, no error
+    assert slow.waits == 4
+    stuck = _StuckWriter(path)
+    with pytest.raises(RuntimeError, match="did not grow for 0.01 s"):
+        flush_while_growing(stuck, path, stall=0.01)
+    assert stuck.waits == 1
+    sink = RerunSink(path)  # and the sink says so as a write that failed, naming the file
+    sink.rec, sink.frame_blocks, sink.event_blocks, sink.ledger_blocks = stuck, [], [], []
+    sink.flush = lambda final=False: None
+    sink._log_info = lambda *a: None
+    with pytest.raises(StoreWriteError, match="x.rrd"):
+        sink.finish({}, "finished")
+    assert sink.failed and sink.rec is None

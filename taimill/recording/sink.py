@@ -40,6 +40,35 @@ LEDGER_KEYS = tuple(ENERGY_COLUMNS)
 
 
 FULL_BYTES = 1 << 16  #: free space below which a failed write is put down to a full disk
+# s a flush may go without the file growing before the writer is taken to have stopped:
+# rerun's flush waits without end by default, and on a full disk its file writer once
+# never answered (one test run in many hung there). A slow disk still grows the file.
+FLUSH_STALL_SECONDS = 30.0
+FLUSH_TIMED_OUT = "Flush timed out"  # the start of rerun's message when a flush's wait ran out
+
+
+def _size(path: Path) -> int:
+    try:
+        return path.stat().st_size
+    except OSError:
+        return -1
+
+
+def flush_while_growing(rec, path: Path, stall: float = FLUSH_STALL_SECONDS) -> None:
+    """rec.flush(), waiting as long as `path` grows; a RuntimeError once it has not grown
+    for `stall` seconds (FLUSH_STALL_SECONDS)."""
+    size = _size(path)
+    while True:
+        try:
+            rec.flush(timeout_sec=stall)
+            return
+        except RuntimeError as err:
+            if not str(err).startswith(FLUSH_TIMED_OUT):
+                raise
+        now = _size(path)
+        if now == size:
+            raise RuntimeError(f"the recording's writer stopped: the file did not grow for {stall:g} s")
+        size = now
 
 
 def _refusals(method):
@@ -149,7 +178,7 @@ class RerunSink:
             return
         self.flush(final=True)
         self._log_info(summary, status)
-        self.rec.flush()
+        flush_while_growing(self.rec, self.path)
         self.rec.disconnect()
         self.rec = None
 
